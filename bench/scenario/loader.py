@@ -1,0 +1,159 @@
+"""Scenario files: a motion script (``[[segment]]``) or a recorded track (``[track]``).
+
+``load_scenario("S000")`` finds ``test_cases/scenarios/S000*.toml``; a path is read as is.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from bench.errors import ConfigError
+from bench.paths import test_cases_dir
+from bench.scenario.motion import GNSS_FLAGS, SURFACES, build_profile
+from bench.scenario.trajectory import SegmentInfo, Trajectory
+from bench.units import quantity
+
+__all__ = ["Scenario", "load_scenario", "find_scenario", "read_toml"]
+
+_TOP_KEYS = {
+    "scenario",
+    "initial",
+    "limits",
+    "defaults",
+    "segment",
+    "track",
+    "truth",
+    # default sensor suite of the scenario (test cases may override)
+    "imu",
+    "doppler",
+    "odometer",
+    "bds",
+    "driver",
+}
+_SCENARIO_KEYS = {"id", "title", "reference", "description", "start_utc", "assumed", "notes"}
+
+
+def read_toml(path: Path) -> dict[str, Any]:
+    """Parse a TOML file; syntax errors name the file and the line."""
+    try:
+        with path.open("rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise ConfigError("file not found", file=str(path)) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"not valid TOML: {exc}", file=str(path)) from None
+
+
+@dataclass
+class Scenario:
+    """A scenario file, parsed and checked; :meth:`trajectory` builds its motion."""
+
+    id: str
+    title: str
+    path: Path
+    doc: dict[str, Any]
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def internal_rate_hz(self) -> float:
+        """Rate of the truth's internal integration grid (``[truth] internal_rate``)."""
+        value = self.doc.get("truth", {}).get("internal_rate", 1000.0)
+        rate = quantity(value, "frequency", "Hz", file=str(self.path), key="truth.internal_rate")
+        if rate < 1000.0:
+            raise ConfigError(
+                f"expected at least 1000 Hz, found {value!r}", file=str(self.path), key="truth.internal_rate"
+            )
+        return rate
+
+    def trajectory(self) -> Trajectory:
+        """Build the truth trajectory (may take a moment for long drives)."""
+        if "track" in self.doc:
+            return _track_trajectory(self)
+        return build_profile(self.doc, file=str(self.path), internal_rate_hz=self.internal_rate_hz)
+
+    def text(self) -> str:
+        """The file as written (to attach to recordings)."""
+        return self.path.read_text()
+
+
+def find_scenario(name: str) -> Path:
+    """Path of a scenario given as a path or as an id found in ``test_cases/scenarios/``."""
+    p = Path(name)
+    if p.suffix == ".toml" or p.exists():
+        if not p.exists():
+            raise ConfigError("file not found", file=str(p))
+        return p
+    folder = test_cases_dir() / "scenarios"
+    hits = sorted(folder.glob(f"{name}*.toml"))
+    if len(hits) == 1:
+        return hits[0]
+    known = ", ".join(sorted(h.stem for h in folder.glob("*.toml"))) or "none"
+    if not hits:
+        raise ConfigError(f"no scenario {name!r} in {folder}; known: {known}")
+    raise ConfigError(f"scenario {name!r} is ambiguous in {folder}: {', '.join(h.name for h in hits)}")
+
+
+def load_scenario(ref: str | Path) -> Scenario:
+    """Load and check a scenario file given by path or id."""
+    path = find_scenario(str(ref))
+    doc = read_toml(path)
+    for k in doc:
+        if k not in _TOP_KEYS:
+            raise ConfigError(
+                f"unknown table {k!r}; expected one of {', '.join(sorted(_TOP_KEYS))}", file=str(path), key=k
+            )
+    meta = doc.get("scenario", {})
+    if not isinstance(meta, dict) or "id" not in meta:
+        raise ConfigError("expected a [scenario] table with an 'id'", file=str(path), key="scenario.id")
+    for k in meta:
+        if k not in _SCENARIO_KEYS:
+            raise ConfigError(
+                f"unknown key {k!r}; expected one of {', '.join(sorted(_SCENARIO_KEYS))}",
+                file=str(path),
+                key=f"scenario.{k}",
+            )
+    if ("track" in doc) == ("segment" in doc):
+        raise ConfigError("a scenario has either [[segment]] tables or a [track] table", file=str(path), key="segment")
+    return Scenario(id=str(meta["id"]), title=str(meta.get("title", "")), path=path, doc=doc, meta=meta)
+
+
+def _track_trajectory(sc: Scenario) -> Trajectory:
+    from bench.scenario.track import SampledTrajectory, read_track
+
+    file = str(sc.path)
+    t = sc.doc["track"]
+    allowed = {"file", "format", "smoothing", "attitude_smoothing", "min_speed", "start", "end"}
+    for k in t:
+        if k not in allowed:
+            raise ConfigError(
+                f"unknown key {k!r}; expected one of {', '.join(sorted(allowed))}", file=file, key=f"track.{k}"
+            )
+    if "file" not in t:
+        raise ConfigError("missing field", file=file, key="track.file")
+    src = Path(t["file"])
+    if not src.is_absolute():
+        src = (sc.path.parent / src).resolve()
+    track = read_track(src, t.get("format", "csv"))
+    start = quantity(t["start"], "time", "s", file=file, key="track.start") if "start" in t else None
+    end = quantity(t["end"], "time", "s", file=file, key="track.end") if "end" in t else None
+    track = track.cleaned().cropped(start, end)
+    defaults = sc.doc.get("defaults", {})
+    gnss = defaults.get("gnss", "open")
+    surface = defaults.get("surface", "asphalt")
+    if gnss not in GNSS_FLAGS:
+        raise ConfigError(f"expected one of {GNSS_FLAGS}, found {gnss!r}", file=file, key="defaults.gnss")
+    if surface not in SURFACES:
+        raise ConfigError(f"expected one of {SURFACES}, found {surface!r}", file=file, key="defaults.surface")
+    duration = float(track.t[-1] - track.t[0]) if len(track.t) else 0.0
+    return SampledTrajectory(
+        track,
+        smoothing=quantity(t.get("smoothing", 0.0), "length", "m", file=file, key="track.smoothing"),
+        attitude_smoothing=quantity(
+            t.get("attitude_smoothing", 0.0), "angle", "deg", file=file, key="track.attitude_smoothing"
+        ),
+        min_speed=quantity(t.get("min_speed", 0.5), "velocity", "m/s", file=file, key="track.min_speed"),
+        segments=[SegmentInfo(0, "track", 0.0, duration, gnss=gnss, surface=surface)],
+    )

@@ -1,0 +1,253 @@
+"""Trajectories from time-sampled tracks: recorded drives, FMU output, any positions.
+
+A track is positions (and optionally attitude) at arbitrary, possibly irregular times.
+:class:`SampledTrajectory` fits quintic smoothing splines to the ECEF positions (offsets
+from the first point, for precision) and to the Euler angles, so that velocity,
+acceleration and angular rates are analytic derivatives of one smooth curve and the IMU
+increments derived from them are consistent with the positions. When no attitude is
+given, heading and pitch follow the direction of travel (held through stops) and roll is
+zero.
+
+Readers for the formats users bring: smartLoc ground truth (``point3 t x y z``), and CSV
+with a header naming its columns (``t, lat, lon, h[, heading, pitch, roll]`` in degrees,
+or ``t, x, y, z`` ECEF in metres).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.interpolate import BSpline, make_interp_spline, make_splrep
+
+from bench.errors import ConfigError
+from bench.nav import earth
+from bench.scenario.trajectory import Kinematics, SegmentInfo, Trajectory
+
+__all__ = ["Track", "SampledTrajectory", "read_smartloc", "read_csv_track", "read_track"]
+
+
+@dataclass
+class Track:
+    """Raw samples of a track.
+
+    Attributes
+    ----------
+    t: (N,) s, strictly increasing after :meth:`cleaned`.
+    xyz_e: (N, 3) ECEF positions, m.
+    euler: (N, 3) heading, pitch, roll (rad) or None.
+    source: where the samples came from (for messages).
+    """
+
+    t: np.ndarray
+    xyz_e: np.ndarray
+    euler: np.ndarray | None = None
+    source: str = ""
+
+    def cleaned(self) -> Track:
+        """Sorted by time with repeated times dropped (first kept)."""
+        order = np.argsort(self.t, kind="stable")
+        t = self.t[order]
+        keep = np.concatenate([[True], np.diff(t) > 1e-6])
+        eul = None if self.euler is None else self.euler[order][keep]
+        return Track(t[keep], self.xyz_e[order][keep], eul, self.source)
+
+    def cropped(self, start: float | None, end: float | None) -> Track:
+        """Samples within ``[start, end]`` seconds of the first sample's time."""
+        rel = self.t - self.t[0]
+        sel = np.ones(len(rel), dtype=bool)
+        if start is not None:
+            sel &= rel >= start
+        if end is not None:
+            sel &= rel <= end
+        eul = None if self.euler is None else self.euler[sel]
+        return Track(self.t[sel], self.xyz_e[sel], eul, self.source)
+
+
+def read_smartloc(path: str | Path) -> Track:
+    """smartLoc ground truth: lines ``point3 t x y z ...`` (time in s, ECEF in m)."""
+    path = Path(path)
+    rows: list[list[float]] = []
+    with path.open() as fh:
+        for n, line in enumerate(fh, 1):
+            parts = line.split()
+            if not parts or parts[0] != "point3":
+                continue
+            try:
+                rows.append([float(p) for p in parts[1:5]])
+            except (ValueError, IndexError):
+                raise ConfigError(
+                    f"line {n}: expected 'point3 t x y z', found {line.strip()[:60]!r}", file=str(path)
+                ) from None
+    if len(rows) < 6:
+        raise ConfigError(f"expected at least 6 'point3' lines, found {len(rows)}", file=str(path))
+    a = np.array(rows)
+    return Track(a[:, 0], a[:, 1:4], None, str(path))
+
+
+_COLS = {
+    "t": ("t", "time", "time_s", "t_s"),
+    "lat": ("lat", "latitude", "lat_deg"),
+    "lon": ("lon", "longitude", "lon_deg"),
+    "h": ("h", "height", "alt", "altitude", "h_m"),
+    "x": ("x", "x_m", "ecef_x"),
+    "y": ("y", "y_m", "ecef_y"),
+    "z": ("z", "z_m", "ecef_z"),
+    "heading": ("heading", "yaw", "heading_deg"),
+    "pitch": ("pitch", "pitch_deg"),
+    "roll": ("roll", "roll_deg"),
+}
+
+
+def read_csv_track(path: str | Path) -> Track:
+    """CSV with a header row naming the columns (see module docstring)."""
+    path = Path(path)
+    with path.open(newline="") as fh:
+        reader = csv.reader(fh)
+        try:
+            header = [h.strip().lower() for h in next(reader)]
+        except StopIteration:
+            raise ConfigError("empty file", file=str(path)) from None
+        idx: dict[str, int] = {}
+        for name, aliases in _COLS.items():
+            for a in aliases:
+                if a in header:
+                    idx[name] = header.index(a)
+                    break
+        data: list[list[float]] = []
+        for n, row in enumerate(reader, 2):
+            if not row or row[0].lstrip().startswith("#"):
+                continue
+            try:
+                data.append([float(v) for v in row])
+            except ValueError:
+                raise ConfigError(f"line {n}: expected numbers, found {row!r}", file=str(path)) from None
+    if "t" not in idx:
+        raise ConfigError(f"no time column; expected one of {_COLS['t']} in the header", file=str(path))
+    a = np.array(data)
+    if a.ndim != 2 or len(a) < 6:
+        raise ConfigError(f"expected at least 6 rows, found {len(a)}", file=str(path))
+    if all(k in idx for k in ("lat", "lon", "h")):
+        xyz = earth.geodetic_to_ecef(np.radians(a[:, idx["lat"]]), np.radians(a[:, idx["lon"]]), a[:, idx["h"]])
+    elif all(k in idx for k in ("x", "y", "z")):
+        xyz = a[:, [idx["x"], idx["y"], idx["z"]]]
+    else:
+        raise ConfigError("expected columns lat, lon, h (deg, deg, m) or x, y, z (ECEF, m)", file=str(path))
+    euler = None
+    if all(k in idx for k in ("heading", "pitch", "roll")):
+        euler = np.radians(a[:, [idx["heading"], idx["pitch"], idx["roll"]]])
+    return Track(a[:, idx["t"]], xyz, euler, str(path))
+
+
+def read_track(path: str | Path, fmt: str) -> Track:
+    """Read a track file of format ``smartloc`` or ``csv``."""
+    if fmt == "smartloc":
+        return read_smartloc(path)
+    if fmt == "csv":
+        return read_csv_track(path)
+    raise ConfigError(f"expected format 'smartloc' or 'csv', found {fmt!r}", key="track.format")
+
+
+def _fit(t: np.ndarray, y: np.ndarray, sigma: float) -> BSpline:
+    """Quintic spline through (t, y), smoothing to residual ``sigma`` (0 interpolates)."""
+    if sigma <= 0.0:
+        return make_interp_spline(t, y, k=5)
+    return make_splrep(t, y, k=5, s=len(t) * sigma**2)
+
+
+class SampledTrajectory(Trajectory):
+    """A trajectory through sampled positions (and attitude), smoothed by quintic splines.
+
+    Parameters
+    ----------
+    track:
+        The samples; times are shifted so the trajectory starts at 0.
+    smoothing:
+        1-sigma of the position noise, m; 0 interpolates the samples exactly.
+    attitude_smoothing:
+        1-sigma of the attitude noise (rad) when attitude is given, or of the derived
+        heading when it is not.
+    min_speed:
+        Below this horizontal speed (m/s) the derived heading is held.
+    segments:
+        Flags for stretches of the track; one stretch covering it all by default.
+    """
+
+    def __init__(
+        self,
+        track: Track,
+        *,
+        smoothing: float = 0.0,
+        attitude_smoothing: float = 0.0,
+        min_speed: float = 0.5,
+        segments: list[SegmentInfo] | None = None,
+    ):
+        tr = track.cleaned()
+        if len(tr.t) < 6:
+            raise ConfigError(f"a track needs at least 6 distinct times, found {len(tr.t)}", file=tr.source)
+        self._t0 = float(tr.t[0])
+        t = tr.t - self._t0
+        self.duration_s = float(t[-1])
+        self._origin = tr.xyz_e[0].copy()
+        off = tr.xyz_e - self._origin
+        self._pos = [_fit(t, off[:, i], smoothing) for i in range(3)]
+        self._vel = [s.derivative(1) for s in self._pos]
+        self._acc = [s.derivative(2) for s in self._pos]
+        self._segments = segments or [SegmentInfo(0, "track", 0.0, self.duration_s)]
+        if tr.euler is not None:
+            eul = tr.euler.copy()
+            eul[:, 0] = np.unwrap(eul[:, 0])
+            eul[:, 2] = np.unwrap(eul[:, 2])
+            self._att = [_fit(t, eul[:, i], attitude_smoothing) for i in range(3)]
+        else:
+            self._att = self._attitude_from_motion(min_speed, attitude_smoothing)
+        self._att_rate = [s.derivative(1) for s in self._att]
+
+    def _attitude_from_motion(self, min_speed: float, sigma: float) -> list[BSpline]:
+        n = max(math.ceil(self.duration_s * 10.0) + 1, 8)
+        tg = np.linspace(0.0, self.duration_s, n)
+        xyz = self._origin + np.stack([s(tg) for s in self._pos], axis=-1)
+        lat, lon, _ = earth.ecef_to_geodetic(xyz)
+        v_e = np.stack([s(tg) for s in self._vel], axis=-1)
+        v_n = np.einsum("nij,nj->ni", earth.C_en(lat, lon), v_e)
+        vh = np.hypot(v_n[:, 0], v_n[:, 1])
+        moving = vh > min_speed
+        if not np.any(moving):
+            raise ConfigError(
+                f"the track never moves faster than {min_speed} m/s, so its heading cannot be derived; "
+                "give attitude columns",
+                file=None,
+            )
+        psi = np.arctan2(v_n[:, 0], v_n[:, 1])
+        theta = np.arctan2(v_n[:, 2], vh)
+        psi_m = np.unwrap(psi[moving])
+        psi_f = np.interp(tg, tg[moving], psi_m)  # holds the first/last heading outside
+        theta_f = np.interp(tg, tg[moving], theta[moving])
+        sig = sigma if sigma > 0.0 else math.radians(0.2)
+        return [_fit(tg, psi_f, sig), _fit(tg, theta_f, sig), _fit(tg, np.zeros(n), 0.0)]
+
+    def kinematics(self, t: np.ndarray) -> Kinematics:
+        t = np.asarray(t, dtype=float)
+        self.check_times(t)
+        xyz = self._origin + np.stack([s(t) for s in self._pos], axis=-1)
+        v_e = np.stack([s(t) for s in self._vel], axis=-1)
+        a_e = np.stack([s(t) for s in self._acc], axis=-1)
+        lat, lon, h = earth.ecef_to_geodetic(xyz)
+        C = earth.C_en(lat, lon)
+        vel_n = np.einsum("nij,nj->ni", C, v_e)
+        w_en = earth.transport_rate_n(lat, h, vel_n)
+        acc_n = np.einsum("nij,nj->ni", C, a_e) - np.cross(w_en, vel_n)
+        euler = np.stack([s(t) for s in self._att], axis=-1)
+        rate = np.stack([s(t) for s in self._att_rate], axis=-1)
+        return Kinematics(t=t, lat=lat, lon=lon, h=h, vel_n=vel_n, acc_n=acc_n, euler=euler, euler_rate=rate)
+
+    def segments(self) -> list[SegmentInfo]:
+        return self._segments
+
+    @property
+    def time_offset_s(self) -> float:
+        """Time of the track's first sample in its own time base, s."""
+        return self._t0
