@@ -114,6 +114,21 @@ class Trajectory(ABC):
         """Times (s, sorted) where a derivative of the motion is discontinuous."""
         return np.empty(0)
 
+    def wheel_speed(self, t: np.ndarray) -> np.ndarray | None:
+        """Speed (m/s, forward positive) of the odometer's wheel or track sprocket
+        surface at times ``t`` when the plant models it (slip, idling, locked wheels);
+        ``None`` when the wheel rolls without slip, so the odometer follows the body.
+        """
+        return None
+
+    def driver_input(self, t: np.ndarray) -> dict[str, np.ndarray] | None:
+        """Driver commands at times ``t`` when the plant is driven by them (FMU runs):
+        keys ``left_lever``, ``right_lever`` (0 most former, 1 position I, 2 position II),
+        ``steering`` (rad, left positive), ``brake`` (0/1). ``None`` for scripted motion,
+        where the driver-input sensor derives plausible commands from the kinematics.
+        """
+        return None
+
     def segments(self) -> list[SegmentInfo]:
         """The scenario's stretches with their flags (one covering everything by default)."""
         return [SegmentInfo(0, "track", 0.0, self.duration_s)]
