@@ -229,7 +229,7 @@ class RecordingReader:
                 return
             reader = NonSeekingReader(fh, validate_crcs=True)
             try:
-                yield from reader.iter_messages(topics=topics)
+                yield from reader.iter_messages(topics=topics, log_time_order=False)
             except (McapError, ValueError, EOFError, AssertionError):
                 return  # truncated: everything before the damage has been returned
 

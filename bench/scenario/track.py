@@ -117,6 +117,11 @@ def read_csv_track(path: str | Path) -> Track:
                 if a in header:
                     idx[name] = header.index(a)
                     break
+        if "t" not in idx:
+            raise ConfigError(f"no time column; expected one of {_COLS['t']} in the header", file=str(path))
+        geodetic = all(k in idx for k in ("lat", "lon", "h"))
+        if not geodetic and not all(k in idx for k in ("x", "y", "z")):
+            raise ConfigError("expected columns lat, lon, h (deg, deg, m) or x, y, z (ECEF, m)", file=str(path))
         data: list[list[float]] = []
         for n, row in enumerate(reader, 2):
             if not row or row[0].lstrip().startswith("#"):
@@ -125,17 +130,13 @@ def read_csv_track(path: str | Path) -> Track:
                 data.append([float(v) for v in row])
             except ValueError:
                 raise ConfigError(f"line {n}: expected numbers, found {row!r}", file=str(path)) from None
-    if "t" not in idx:
-        raise ConfigError(f"no time column; expected one of {_COLS['t']} in the header", file=str(path))
     a = np.array(data)
     if a.ndim != 2 or len(a) < 6:
         raise ConfigError(f"expected at least 6 rows, found {len(a)}", file=str(path))
-    if all(k in idx for k in ("lat", "lon", "h")):
+    if geodetic:
         xyz = earth.geodetic_to_ecef(np.radians(a[:, idx["lat"]]), np.radians(a[:, idx["lon"]]), a[:, idx["h"]])
-    elif all(k in idx for k in ("x", "y", "z")):
-        xyz = a[:, [idx["x"], idx["y"], idx["z"]]]
     else:
-        raise ConfigError("expected columns lat, lon, h (deg, deg, m) or x, y, z (ECEF, m)", file=str(path))
+        xyz = a[:, [idx["x"], idx["y"], idx["z"]]]
     euler = None
     if all(k in idx for k in ("heading", "pitch", "roll")):
         euler = np.radians(a[:, [idx["heading"], idx["pitch"], idx["roll"]]])
