@@ -30,8 +30,7 @@ def progress_bar(
     )
 
     def update(done: float, tot: float) -> None:
-        bar.n = round(min(done, tot), 3)
-        bar.refresh()
+        bar.update(round(min(done, tot), 3) - bar.n)
 
     try:
         yield update
