@@ -1,0 +1,156 @@
+"""Clocks of a run: lockstep (simulated time) and real time (optionally scaled).
+
+Real-time pacing sleeps until shortly before the due time and spins for the rest on the
+monotonic clock, then reports the lateness of the emission. The lateness of every
+emission is kept (:class:`TimingLog`) so a run can show its timing quality and end as
+ERROR when it misses its budget.
+"""
+
+from __future__ import annotations
+
+import time
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Clock", "LockstepClock", "RealTimeClock", "TimingLog", "TimingBudget", "TimingSummary"]
+
+
+class Clock(ABC):
+    """Maps bench time to wall time."""
+
+    #: True when bench time advances only as the bench says (lockstep).
+    lockstep: bool
+
+    @abstractmethod
+    def start(self) -> None:
+        """Bench time zero is now."""
+
+    @abstractmethod
+    def wait_until(self, t_ns: int) -> int:
+        """Block until bench time ``t_ns``; return the lateness (ns, >= 0 when on time or late)."""
+
+    @abstractmethod
+    def now_ns(self) -> int:
+        """Current bench time, ns."""
+
+
+class LockstepClock(Clock):
+    """Simulated time: bench time is whatever the bench has reached; nothing waits."""
+
+    lockstep = True
+
+    def __init__(self) -> None:
+        self._t = 0
+
+    def start(self) -> None:
+        self._t = 0
+
+    def wait_until(self, t_ns: int) -> int:
+        self._t = max(self._t, int(t_ns))
+        return 0
+
+    def now_ns(self) -> int:
+        return self._t
+
+
+class RealTimeClock(Clock):
+    """Wall-clock pacing, ``speed`` times real time (0.5: half speed, 2: twice as fast).
+
+    Parameters
+    ----------
+    speed:
+        Bench seconds per wall second.
+    spin_ns:
+        The last part of every wait is spent spinning, not sleeping (the scheduler's
+        wake-up latency is larger than the timing budget).
+    """
+
+    lockstep = False
+
+    def __init__(self, speed: float = 1.0, spin_ns: int = 300_000):
+        if speed <= 0.0:
+            raise ValueError(f"speed must be positive, found {speed}")
+        self.speed = float(speed)
+        self.spin_ns = int(spin_ns)
+        self._t0 = 0
+
+    def start(self) -> None:
+        self._t0 = time.monotonic_ns()
+
+    def _wall(self, t_ns: int) -> int:
+        return self._t0 + int(t_ns / self.speed)
+
+    def now_ns(self) -> int:
+        return int((time.monotonic_ns() - self._t0) * self.speed)
+
+    def wait_until(self, t_ns: int) -> int:
+        due = self._wall(t_ns)
+        now = time.monotonic_ns()
+        if due - now > self.spin_ns:
+            time.sleep((due - now - self.spin_ns) * 1e-9)
+        now = time.monotonic_ns()
+        while now < due:
+            now = time.monotonic_ns()
+        return now - due
+
+
+@dataclass(frozen=True)
+class TimingBudget:
+    """Limits on emission lateness of a real-time run (ns)."""
+
+    p99_ns: int = 50_000
+    max_ns: int = 2_000_000
+
+
+@dataclass(frozen=True)
+class TimingSummary:
+    """Lateness statistics of a run, ns."""
+
+    count: int
+    p50_ns: float
+    p99_ns: float
+    p999_ns: float
+    max_ns: float
+
+    def within(self, budget: TimingBudget) -> bool:
+        """Whether the run met the budget."""
+        return self.p99_ns <= budget.p99_ns and self.max_ns <= budget.max_ns
+
+    def text(self) -> str:
+        """One line in microseconds."""
+        return (f"{self.count} emissions, lateness p50 {self.p50_ns / 1e3:.1f} us, p99 {self.p99_ns / 1e3:.1f} us, "
+                f"p99.9 {self.p999_ns / 1e3:.1f} us, max {self.max_ns / 1e3:.1f} us")
+
+
+class TimingLog:
+    """Scheduled bench times and measured lateness of every emission."""
+
+    def __init__(self, capacity: int = 1 << 16):
+        self._t = np.empty(capacity, dtype=np.int64)
+        self._late = np.empty(capacity, dtype=np.int64)
+        self._n = 0
+
+    def add(self, t_ns: int, lateness_ns: int) -> None:
+        """Record one emission."""
+        if self._n == len(self._t):
+            self._t = np.resize(self._t, 2 * len(self._t))
+            self._late = np.resize(self._late, 2 * len(self._late))
+        self._t[self._n] = t_ns
+        self._late[self._n] = lateness_ns
+        self._n += 1
+
+    def take(self) -> tuple[np.ndarray, np.ndarray]:
+        """The entries recorded since the last take (for the recording)."""
+        t, late = self._t[: self._n].copy(), self._late[: self._n].copy()
+        self._n = 0
+        return t, late
+
+    @staticmethod
+    def summarize(lateness_ns: np.ndarray) -> TimingSummary:
+        """Percentiles of a lateness array."""
+        if len(lateness_ns) == 0:
+            return TimingSummary(0, 0.0, 0.0, 0.0, 0.0)
+        p = np.percentile(lateness_ns, [50, 99, 99.9])
+        return TimingSummary(len(lateness_ns), float(p[0]), float(p[1]), float(p[2]), float(np.max(lateness_ns)))
