@@ -35,7 +35,7 @@ def describe(path: str) -> dict:
         entry = {"schema": info.schema, "encoding": info.encoding, "messages": info.messages}
         if info.encoding == COLUMNAR and info.messages:
             rec = r.read_columnar(name)
-            entry["samples"] = int(len(rec))
+            entry["samples"] = len(rec)
             if len(rec):
                 t0, t1 = int(np.min(rec["t_ns"])), int(np.max(rec["t_ns"]))
                 entry["span_s"] = [t0 * 1e-9, t1 * 1e-9]
