@@ -22,11 +22,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import lfilter
 
 from bench.rng import stream
 from bench.sensors.imu.grade import ImuGrade, TriadErrors
 from bench.sensors.imu.ideal import ImuBlock
+from bench.sensors.processes import gauss_markov_filter
 
 __all__ = ["ImuErrorModel", "gauss_markov_sigma", "ALLAN_FLOOR_FACTOR"]
 
@@ -145,10 +145,9 @@ class ImuErrorModel:
             w = self._rng[(triad, "gm")].standard_normal((n, 3))
             gm = np.empty((n, 3))
             for i in range(3):
-                gm[:, i], _ = lfilter(
-                    [sigma[i] * math.sqrt(1.0 - phi[i] ** 2)], [1.0, -phi[i]], w[:, i], zi=[phi[i] * st.gm[i]]
+                gm[:, i], st.gm[i] = gauss_markov_filter(
+                    w[:, i], phi[i], sigma[i] * math.sqrt(1.0 - phi[i] ** 2), st.gm[i]
                 )
-            st.gm = gm[-1].copy()
             out += gm * T
         if np.any(e.bias_random_walk):
             steps = self._rng[(triad, "rw")].standard_normal((n, 3)) * (e.bias_random_walk * math.sqrt(T))
