@@ -22,6 +22,8 @@ import numpy as np
 
 from bench import __version__
 from bench.errors import ConfigError
+from bench.faults.motion import with_motion_faults
+from bench.faults.schedule import FAULT_JSON_SCHEMA, FAULT_TOPIC, FaultSchedule
 from bench.nav import earth
 from bench.paths import project_root
 from bench.record.foxglove import LOCATION_FIX, POSE_IN_FRAME, location_fixes, poses_in_frame
@@ -32,6 +34,7 @@ from bench.scenario.trajectory import Trajectory, truth_at
 from bench.sensors.base import SensorModel
 from bench.sensors.imu.grade import ImuGrade, load_grade
 from bench.sensors.imu.model import LaserImu
+from bench.sensors.suite import SensorSuite, build_suite, fault_schedule
 from bench.units import quantity
 
 __all__ = ["SynthOptions", "SynthSummary", "synthesize", "epoch_of", "git_commit", "imu_from_scenario"]
@@ -53,6 +56,8 @@ class SynthOptions:
     display_rate_hz: float = 5.0
     write_ideal: bool = True
     window_s: float = 10.0
+    #: Fault files (``[[fault]]`` tables) added to the scenario's own ``[[fault]]`` tables.
+    fault_files: tuple[str, ...] = ()
 
 
 @dataclass
@@ -141,8 +146,9 @@ def synthesize(
     out: str | Path,
     options: SynthOptions | None = None,
     *,
-    sensors: Sequence[SensorModel] = (),
+    sensors: Sequence[SensorModel] | None = None,
     trajectory: Trajectory | None = None,
+    faults: FaultSchedule | None = None,
     progress: Callable[[float, float], None] | None = None,
 ) -> SynthSummary:
     """Synthesize a scenario into an MCAP recording.
@@ -156,19 +162,30 @@ def synthesize(
     options:
         Seed, rates, IMU grade.
     sensors:
-        Further sensor models to run beside the IMU.
+        Sensor models to run beside the IMU; by default the aiding sensors the
+        scenario's ``[doppler]``, ``[odometer]``, ``[bds]`` and ``[driver]`` tables enable.
     trajectory:
-        A trajectory already built from the scenario (built here otherwise).
+        A trajectory already built from the scenario (built here otherwise); the
+        schedule's body motions (odometer sideslip, bump) are added to it.
+    faults:
+        The fault schedule; by default the scenario's ``[[fault]]`` tables and
+        ``options.fault_files``. Every window is recorded on ``/faults``.
     progress:
         Called with (bench seconds done, total) after each window.
     """
     options = options or SynthOptions()
     started = time.perf_counter()
     grade, imu_rate = imu_from_scenario(scenario, options)
-    traj = trajectory or scenario.trajectory()
+    file = str(scenario.path)
+    schedule = faults if faults is not None else fault_schedule(scenario.doc, file=file, extra=options.fault_files)
+    traj = with_motion_faults(trajectory or scenario.trajectory(), schedule)
     epoch = epoch_of(scenario)
     imu = LaserImu(grade, options.seed, imu_rate, write_ideal=options.write_ideal)
-    models: list[SensorModel] = [imu, *sensors]
+    if sensors is None:
+        suite = build_suite(scenario.doc, seed=options.seed, file=file, schedule=schedule, imu_name=imu.name)
+    else:
+        suite = SensorSuite(list(sensors), schedule)
+    models: list[SensorModel] = [suite.wrap_imu(imu), *suite.models]
     counts: dict[str, int] = {}
     total_ns = traj.duration_ns
     window_ns = int(options.window_s * 1e9)
@@ -204,6 +221,16 @@ def synthesize(
         rec.metadata(
             "imu_realised", {k: {kk: vv.tolist() for kk, vv in v.items()} for k, v in imu.errors.realised.items()}
         )
+        if suite.params:
+            rec.metadata("sensors", suite.record())
+        for src in suite.sources():
+            rec.attach(f"models/sensors/{src.parent.name}/{src.name}", src.read_bytes(), "application/toml")
+        for ff in options.fault_files:
+            rec.attach(f"faults/{Path(ff).name}", Path(ff).read_bytes(), "application/toml")
+        rec.json_topic(FAULT_TOPIC, "bench.FaultWindow", FAULT_JSON_SCHEMA)
+        for w in schedule:
+            rec.write_json(FAULT_TOPIC, w.start_ns, w.to_json())
+        counts[FAULT_TOPIC] = len(schedule)
         rec.json_topic("/scenario/segments", "bench.Segments", {"type": "object"})
         rec.write_json(
             "/scenario/segments",

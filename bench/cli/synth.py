@@ -25,6 +25,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--imu-grade", help="IMU grade name in models/imu/ or a TOML path (default: the scenario's)")
     p.add_argument("--truth-rate", type=float, default=100.0, help="rate of the /truth topic, Hz (default 100)")
     p.add_argument("--no-ideal", action="store_true", help="do not write the error-free IMU increments")
+    p.add_argument(
+        "--faults",
+        action="append",
+        default=[],
+        metavar="FILE",
+        help="fault schedule file ([[fault]] tables) added to the scenario's own; may be repeated",
+    )
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(handler=_run)
 
@@ -40,6 +47,7 @@ def _run(args: argparse.Namespace) -> int:
         imu_grade=args.imu_grade,
         truth_rate_hz=args.truth_rate,
         write_ideal=not args.no_ideal,
+        fault_files=tuple(args.faults),
     )
     if not args.quiet:
         print(f"bench synth: building the {scenario.id} trajectory ...", file=sys.stderr)

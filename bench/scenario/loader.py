@@ -32,6 +32,8 @@ _TOP_KEYS = {
     "odometer",
     "bds",
     "driver",
+    # sensor-level fault windows of the scenario (bench.faults.schedule)
+    "fault",
 }
 _SCENARIO_KEYS = {"id", "title", "reference", "description", "start_utc", "assumed", "notes"}
 
