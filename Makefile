@@ -6,7 +6,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install demo test lint bench clean
+.PHONY: install demo test lint bench clean fmus
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -14,7 +14,14 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $@
 
-install: $(STAMP)
+# the vehicle FMUs, built from source with cmake and the C compiler (fmu/build.py)
+FMU_MANIFEST := fmu/build/SHA256SUMS
+$(FMU_MANIFEST): $(STAMP) fmu/build.py fmu/CMakeLists.txt $(wildcard fmu/src/*) $(wildcard fmu/models/*/*)
+	$(BIN)/python fmu/build.py
+
+fmus: $(FMU_MANIFEST)
+
+install: $(STAMP) $(FMU_MANIFEST)
 
 demo: install
 	mkdir -p reports
@@ -29,4 +36,4 @@ bench: install
 	for f in benchmarks/bench_*.py; do $(BIN)/python $$f || exit 1; done
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) build *.egg-info fmu/build
