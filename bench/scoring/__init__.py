@@ -1,1 +1,9 @@
-"""scoring."""
+"""Scoring: metrics of a DUT's navigation output, computed from a recording only.
+
+Scoring reads one MCAP recording (:func:`~bench.scoring.data.load_run`) and nothing
+else: no links, sensors, plant or clock. The truth is interpolated to the DUT's times of
+validity (:mod:`~bench.scoring.align`), windows are resolved against the run
+(:mod:`~bench.scoring.windows`) and the metric families compute their values:
+accuracy, fault detection and isolation, frame-switch smoothness, consistency and
+output quality (catalogue in :mod:`~bench.scoring.metrics`). See ``docs/scoring.md``.
+"""

@@ -1,0 +1,174 @@
+"""Truth at the DUT's times of validity, and the DUT's navigation errors.
+
+The DUT says when each solution is valid (``t_ns``); the truth is recorded on its own
+grid (100 Hz). The truth is interpolated to the DUT's times:
+
+* position: cubic Hermite on latitude, (unwrapped) longitude and height, with the
+  derivatives from the recorded velocity (exact for motion with constant acceleration);
+* velocity: cubic Hermite with the recorded ``acc_n`` as derivative;
+* attitude: spherical linear interpolation of ``q_bn`` on SO(3) (never of Euler angles,
+  which jump at 0/360 deg).
+
+At a DUT time equal to a truth sample the recorded sample is used as is. DUT times
+outside the truth's span are not covered and are left out of every metric.
+
+Errors are DUT minus truth: position as the ECEF difference rotated into the local ENU
+frame at the truth (m), velocity ENU (m/s), heading/pitch/roll differences wrapped to
+[-pi, pi) (rad), and the total attitude error angle on SO(3) (rad).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench.nav import earth
+from bench.nav.rotation import euler_to_quat, quat_conj, quat_mul, quat_to_euler, quat_to_rotvec, wrap_pi
+
+__all__ = ["AlignedTruth", "interpolate_truth", "NavErrors", "nav_errors", "cumulative_distance"]
+
+
+@dataclass
+class AlignedTruth:
+    """Truth at M query times.
+
+    Attributes: ``covered`` (M,) bool; ``lat, lon, h`` (M,) rad, rad, m; ``vel_n`` (M, 3)
+    m/s; ``q_bn`` (M, 4); ``euler`` (M, 3) heading [0, 2 pi), pitch, roll rad;
+    ``distance`` (M,) distance driven since the first truth sample, m.
+    """
+
+    covered: np.ndarray
+    lat: np.ndarray
+    lon: np.ndarray
+    h: np.ndarray
+    vel_n: np.ndarray
+    q_bn: np.ndarray
+    euler: np.ndarray
+    distance: np.ndarray
+
+
+def cumulative_distance(truth: np.ndarray) -> np.ndarray:
+    """Distance driven (m) at each truth sample: trapezoid of the speed."""
+    t = truth["t_ns"].astype(np.float64) * 1e-9
+    speed = np.linalg.norm(truth["vel_n"], axis=1)
+    steps = 0.5 * (speed[1:] + speed[:-1]) * np.diff(t)
+    return np.concatenate([[0.0], np.cumsum(steps)])
+
+
+def _hermite(p0, p1, m0, m1, x):
+    x = x.reshape(x.shape + (1,) * (p0.ndim - 1))
+    x2, x3 = x * x, x * x * x
+    return (2 * x3 - 3 * x2 + 1) * p0 + (x3 - 2 * x2 + x) * m0 + (-2 * x3 + 3 * x2) * p1 + (x3 - x2) * m1
+
+
+def _slerp(q0: np.ndarray, q1: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Spherical interpolation of unit quaternions (M, 4) at fractions x (M,)."""
+    dot = np.sum(q0 * q1, axis=1)
+    q1 = np.where(dot[:, None] < 0.0, -q1, q1)
+    rel = quat_mul(quat_conj(q0), q1)
+    rot = quat_to_rotvec(rel) * x[:, None]
+    half = 0.5 * np.linalg.norm(rot, axis=1)
+    small = half < 1e-8
+    s = np.where(small, 0.5, np.sin(half) / np.where(small, 1.0, 2.0 * half))
+    dq = np.concatenate([np.cos(half)[:, None], rot * s[:, None]], axis=1)
+    return quat_mul(q0, dq)
+
+
+def interpolate_truth(truth: np.ndarray, t_ns: np.ndarray) -> AlignedTruth:
+    """Truth records (sorted, unique ``t_ns``) interpolated at times ``t_ns`` (M,)."""
+    tt = truth["t_ns"]
+    t_ns = np.asarray(t_ns, dtype=np.int64)
+    covered = (t_ns >= tt[0]) & (t_ns <= tt[-1])
+    i = np.clip(np.searchsorted(tt, t_ns, side="right") - 1, 0, len(tt) - 2)
+    dt_ns = (tt[i + 1] - tt[i]).astype(np.float64)
+    x = np.clip((t_ns - tt[i]).astype(np.float64) / dt_ns, 0.0, 1.0)
+    exact = t_ns == tt[i]
+    last = t_ns == tt[-1]
+    dt = dt_ns * 1e-9
+
+    lat_all, h_all, vel_all = truth["lat"], truth["h"], truth["vel_n"]
+    lon_all = np.unwrap(truth["lon"])
+    rates = np.column_stack(earth.position_rates(lat_all, h_all, vel_all))
+    pos_all = np.column_stack([lat_all, lon_all, h_all])
+    pos = _hermite(pos_all[i], pos_all[i + 1], rates[i] * dt[:, None], rates[i + 1] * dt[:, None], x)
+    acc_all = truth["acc_n"]
+    vel = _hermite(vel_all[i], vel_all[i + 1], acc_all[i] * dt[:, None], acc_all[i + 1] * dt[:, None], x)
+    q = _slerp(truth["q_bn"][i], truth["q_bn"][i + 1], x)
+    psi, theta, gamma = quat_to_euler(q)
+    euler = np.column_stack([psi, theta, gamma])
+    dist_all = cumulative_distance(truth)
+    dist = dist_all[i] + x * (dist_all[i + 1] - dist_all[i])
+
+    # samples hit exactly: use the recorded values untouched
+    for sel, j in ((exact, i), (last, np.full_like(i, len(tt) - 1))):
+        if np.any(sel):
+            pos[sel] = pos_all[j[sel]]
+            vel[sel] = vel_all[j[sel]]
+            q[sel] = truth["q_bn"][j[sel]]
+            euler[sel] = truth["euler"][j[sel]]
+            dist[sel] = dist_all[j[sel]]
+    lon = (pos[:, 1] + np.pi) % (2.0 * np.pi) - np.pi
+    return AlignedTruth(covered, pos[:, 0], lon, pos[:, 2], vel, q, euler, dist)
+
+
+@dataclass
+class NavErrors:
+    """DUT minus truth at the DUT's epochs (sorted by time of validity).
+
+    Attributes
+    ----------
+    t_ns: (M,) time of validity, ns.
+    usable: (M,) bool: covered by the truth and flagged valid by the DUT.
+    covered: (M,) bool: within the truth's span.
+    pos: (M, 3) position error, ENU at the truth, m.
+    vel: (M, 3) velocity error, ENU, m/s.
+    att: (M, 3) heading, pitch, roll errors wrapped to [-pi, pi), rad.
+    att_angle: (M,) total attitude error angle on SO(3), rad.
+    distance: (M,) truth distance driven since the start, m.
+    lat: (M,) truth latitude, rad.
+    index: (M,) index of each epoch in the recorded (arrival-order) DUT records.
+    """
+
+    t_ns: np.ndarray
+    usable: np.ndarray
+    covered: np.ndarray
+    pos: np.ndarray
+    vel: np.ndarray
+    att: np.ndarray
+    att_angle: np.ndarray
+    distance: np.ndarray
+    lat: np.ndarray
+    index: np.ndarray
+
+
+def nav_errors(truth: np.ndarray, nav: np.ndarray) -> NavErrors:
+    """Errors of the DUT solution records ``nav`` (NAV_SOLUTION_DTYPE) against ``truth``.
+
+    Epochs are sorted by time of validity; a repeated time of validity keeps its first
+    arrival only.
+    """
+    order = np.argsort(nav["t_ns"], kind="stable")
+    t_sorted = nav["t_ns"][order]
+    keep = np.concatenate([[True], np.diff(t_sorted) > 0]) if len(order) else np.zeros(0, bool)
+    index = order[keep]
+    d = nav[index]
+    t_ns = d["t_ns"].astype(np.int64)
+    tr = interpolate_truth(truth, t_ns)
+    x_true = earth.geodetic_to_ecef(tr.lat, tr.lon, tr.h)
+    x_dut = earth.geodetic_to_ecef(d["lat"], d["lon"], d["h"])
+    C = earth.C_en(tr.lat, tr.lon)
+    pos = np.einsum("nij,nj->ni", C, x_dut - x_true)
+    vel = d["vel_n"] - tr.vel_n
+    att = np.column_stack(
+        [
+            wrap_pi(d["heading"] - tr.euler[:, 0]),
+            wrap_pi(d["pitch"] - tr.euler[:, 1]),
+            wrap_pi(d["roll"] - tr.euler[:, 2]),
+        ]
+    )
+    q_dut = euler_to_quat(d["heading"], d["pitch"], d["roll"])
+    q_err = quat_mul(q_dut, quat_conj(tr.q_bn))
+    att_angle = np.linalg.norm(quat_to_rotvec(q_err), axis=1)
+    usable = tr.covered & (d["valid"] != 0)
+    return NavErrors(t_ns, usable, tr.covered, pos, vel, att, att_angle, tr.distance, tr.lat, index)

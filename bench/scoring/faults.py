@@ -1,0 +1,254 @@
+"""Fault detection and isolation, per recorded fault window.
+
+Each sensor-layer fault window on ``/faults`` is matched to the NAV_QUALITY bit of its
+sensor (bit 0 odometer, 1 Doppler, 2 BDS, 3 IMU; the target name is split into words
+and the first word naming a sensor picks the bit). For each window ``[start, end)``:
+
+* **detected** if the chosen flag (``fault_detected``, ``excluded``, or ``either``) is
+  set at an epoch in ``[start, end + grace)``; **latency** = first such epoch - start;
+* **exclusion** = fraction of the DUT's epochs in ``[start, end)`` with the sensor's
+  ``excluded`` bit set;
+* **growth** = max horizontal error in ``[start, end]`` - the error at the last epoch at
+  or before ``start``;
+* **recovery** = time from ``end`` until the horizontal error is back within
+  ``tolerance`` of its pre-fault level (max over ``[start - pre, start)``); infinite if
+  it never is before the run ends; **residual** = error at ``end + after`` minus the
+  pre-fault level.
+
+**False alarms**: flag episodes (rising edges) on a sensor's bit that begin outside
+every fault window of that sensor (each extended by ``grace``), counted over the
+criterion's window; the rate is per time outside the fault windows.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from bench.faults.schedule import FaultWindow
+from bench.scoring.align import NavErrors
+from bench.scoring.data import NoDataError
+from bench.scoring.windows import Window, intersect, union
+
+__all__ = ["SENSOR_BITS", "target_bit", "FaultSettings", "WindowOutcome", "FaultAnalysis", "analyse_faults", "FLAGS"]
+
+#: NAV_QUALITY bit of each sensor name (ICD 2.2, bytes 26-27).
+SENSOR_BITS = {"odometer": 0, "odo": 0, "doppler": 1, "radar": 1, "bds": 2, "gnss": 2, "imu": 3}
+FLAGS = ("detected", "excluded", "either")
+
+
+def target_bit(target: str) -> int | None:
+    """The NAV_QUALITY bit of a fault target (``odometer``, ``can:ODOMETER`` -> 0), or None."""
+    for word in re.split(r"[^a-z0-9]+", target.lower()):
+        if word in SENSOR_BITS:
+            return SENSOR_BITS[word]
+    return None
+
+
+@dataclass(frozen=True)
+class FaultSettings:
+    """Case-level settings of the fault metrics (ns; m)."""
+
+    grace_ns: int = 0
+    pre_ns: int = 30_000_000_000
+    after_ns: int = 30_000_000_000
+    tolerance: float = 1.0
+    flag: str = "detected"
+
+
+@dataclass
+class WindowOutcome:
+    """What the DUT did in one fault window (times s, errors m)."""
+
+    id: int
+    target: str
+    kind: str
+    start_s: float
+    end_s: float
+    detected: bool
+    latency_s: float
+    exclusion: float
+    epochs: int
+    growth_m: float
+    recovery_s: float
+    residual_m: float
+
+    def to_json(self) -> dict[str, Any]:
+        return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in self.__dict__.items()}
+
+
+@dataclass
+class FaultAnalysis:
+    """Per-window outcomes and false alarms over one criterion window."""
+
+    outcomes: list[WindowOutcome] = field(default_factory=list)
+    false_alarms: list[dict[str, Any]] = field(default_factory=list)
+    clear_time_s: float = 0.0
+
+    def value(self, name: str) -> float:
+        """Aggregate ``faults.<name>`` (see :data:`bench.scoring.metrics`)."""
+        o = self.outcomes
+        if name == "windows":
+            return float(len(o))
+        if name == "false_alarms":
+            return float(len(self.false_alarms))
+        if name == "false_alarm_rate":
+            if self.clear_time_s <= 0.0:
+                raise NoDataError("no fault-free time in the window to count false alarms over")
+            return len(self.false_alarms) / self.clear_time_s
+        if not o:
+            raise NoDataError("no recorded fault window of the selected targets in the window")
+        det = [w for w in o if w.detected]
+        if name == "detected":
+            return float(len(det))
+        if name == "missed":
+            return float(len(o) - len(det))
+        if name == "detection_rate":
+            return len(det) / len(o)
+        if name == "latency_max":
+            return max(w.latency_s for w in o)  # inf when one was missed
+        if name == "latency_mean":
+            return float(np.mean([w.latency_s for w in det])) if det else math.inf
+        if name == "exclusion_min":
+            return min(w.exclusion for w in o)
+        if name == "exclusion_mean":
+            return float(np.mean([w.exclusion for w in o]))
+        if name == "growth_max":
+            return max(w.growth_m for w in o)
+        if name == "recovery_max":
+            return max(w.recovery_s for w in o)
+        if name == "residual_max":
+            return max(w.residual_m for w in o)
+        raise KeyError(name)
+
+    def details(self) -> dict[str, Any]:
+        return {
+            "windows": [w.to_json() for w in self.outcomes],
+            "false_alarms": self.false_alarms,
+            "fault_free_s": self.clear_time_s,
+        }
+
+
+def _flag_bits(quality: np.ndarray, bit: int, flag: str) -> np.ndarray:
+    m = np.uint8(1 << bit)
+    det = (quality["fault_detected"] & m) != 0
+    exc = (quality["excluded"] & m) != 0
+    return {"detected": det, "excluded": exc, "either": det | exc}[flag]
+
+
+def _episodes(t: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Start times of runs of True in ``f``."""
+    rising = f & ~np.concatenate([[False], f[:-1]])
+    return t[rising]
+
+
+def analyse_faults(
+    faults: Sequence[FaultWindow],
+    quality: np.ndarray | None,
+    errors: NavErrors | None,
+    window: Window,
+    settings: FaultSettings,
+    *,
+    targets: Sequence[str] = (),
+    flag: str | None = None,
+    layer: str = "sensor",
+) -> FaultAnalysis:
+    """Outcomes of the fault windows starting inside ``window`` (filtered by target/layer)."""
+    if quality is None or len(quality) == 0:
+        raise NoDataError("the recording holds no DUT quality output (/dut/nav_quality)")
+    if window.empty:
+        raise NoDataError(f"window {window.spec.name!r} selects no time in this run")
+    flag = flag or settings.flag
+    order = np.argsort(quality["t_ns"], kind="stable")
+    q = quality[order]
+    tq = q["t_ns"].astype(np.int64)
+    chosen = [
+        w
+        for w in faults
+        if (layer == "any" or w.layer == layer)
+        and target_bit(w.target) is not None
+        and (not targets or w.target in targets or any(target_bit(t) == target_bit(w.target) for t in targets))
+    ]
+    bits = sorted({target_bit(t) for t in targets} - {None}) if targets else sorted({0, 1, 2, 3})
+    out = FaultAnalysis()
+    if errors is not None:
+        e_h = np.hypot(errors.pos[:, 0], errors.pos[:, 1])[errors.usable]
+        t_e = errors.t_ns[errors.usable]
+    else:
+        e_h = t_e = np.zeros(0)
+    for w in chosen:
+        if not window.mask(np.array([w.start_ns]))[0]:
+            continue
+        bit = target_bit(w.target)
+        assert bit is not None
+        f = _flag_bits(q, bit, flag)
+        exc = _flag_bits(q, bit, "excluded")
+        in_det = (tq >= w.start_ns) & (tq < w.end_ns + settings.grace_ns)
+        in_win = (tq >= w.start_ns) & (tq < w.end_ns)
+        if not np.any(in_win):
+            raise NoDataError(f"no DUT quality epoch inside fault window {w.id} ({w.kind} on {w.target})")
+        hits = np.flatnonzero(in_det & f)
+        detected = len(hits) > 0
+        latency = (tq[hits[0]] - w.start_ns) * 1e-9 if detected else math.inf
+        growth = recovery = residual = math.nan
+        if len(t_e):
+            growth, recovery, residual = _error_course(t_e, e_h, w, settings)
+        out.outcomes.append(
+            WindowOutcome(
+                w.id,
+                w.target,
+                w.kind,
+                w.start_ns * 1e-9,
+                w.end_ns * 1e-9,
+                bool(detected),
+                float(latency),
+                float(np.mean(exc[in_win])),
+                int(np.sum(in_win)),
+                growth,
+                recovery,
+                residual,
+            )
+        )
+    # false alarms, per sensor bit, over the criterion window
+    in_crit = window.mask(tq)
+    clear = window.intervals
+    for bit in bits:
+        mine = [w for w in faults if target_bit(w.target) == bit]
+        f = _flag_bits(q, bit, flag)
+        protected = np.zeros(len(tq), dtype=bool)
+        for w in mine:
+            protected |= (tq >= w.start_ns) & (tq < w.end_ns + settings.grace_ns)
+        starts = _episodes(tq, f)
+        start_idx = np.searchsorted(tq, starts)
+        for t0, i in zip(starts, start_idx, strict=True):
+            if in_crit[i] and not protected[i]:
+                out.false_alarms.append({"sensor_bit": bit, "t_s": int(t0) * 1e-9})
+    all_faults = np.array([[w.start_ns, w.end_ns + settings.grace_ns] for w in faults], dtype=np.int64).reshape(-1, 2)
+    busy = intersect(clear, union(all_faults)) if len(all_faults) else np.zeros((0, 2), dtype=np.int64)
+    total = float(np.sum(clear[:, 1] - clear[:, 0]))
+    out.clear_time_s = (total - float(np.sum(busy[:, 1] - busy[:, 0]) if len(busy) else 0.0)) * 1e-9
+    out.false_alarms.sort(key=lambda a: a["t_s"])
+    return out
+
+
+def _error_course(t: np.ndarray, e: np.ndarray, w: FaultWindow, s: FaultSettings) -> tuple[float, float, float]:
+    """(growth, recovery, residual) of the horizontal error around a fault window."""
+    before = np.flatnonzero(t <= w.start_ns)
+    during = np.flatnonzero((t >= w.start_ns) & (t <= w.end_ns))
+    if len(during) == 0:
+        return math.nan, math.nan, math.nan
+    e0 = e[before[-1]] if len(before) else e[during[0]]
+    growth = float(np.max(e[during]) - e0)
+    pre = np.flatnonzero((t >= w.start_ns - s.pre_ns) & (t < w.start_ns))
+    level = float(np.max(e[pre])) if len(pre) else float(e0)
+    after = np.flatnonzero(t >= w.end_ns)
+    ok = after[e[after] <= level + s.tolerance]
+    recovery = float((t[ok[0]] - w.end_ns) * 1e-9) if len(ok) else math.inf
+    later = np.flatnonzero(t >= w.end_ns + s.after_ns)
+    residual = float(e[later[0]] - level) if len(later) else math.nan
+    return growth, recovery, residual

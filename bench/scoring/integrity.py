@@ -1,0 +1,70 @@
+"""Can the bench judge this run at all? Bench-side failures, kept apart from the DUT's.
+
+The recording says how the run ended (``run_end`` metadata: ``complete``, ``error``,
+``interrupted``, ``dut_error``, ``timing_budget``, ``link_lost``...) and, in real-time
+runs, how late the bench was at every step (``/bench/timing``). From these:
+
+* **bench issues** make the run's verdict ERROR: an unfinished recording, no
+  ``run_end``, an end status other than ``complete``/``dut_error``, steps later than the
+  timing budget, no truth, no DUT output at all;
+* **DUT issues** make it FAIL: ``dut_error`` (the DUT crashed, hung or misbehaved on the
+  link, as the run engine saw it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bench.scoring.data import NAV_SOLUTION, TIMING, TRUTH, RunData
+
+__all__ = ["Integrity", "check_integrity", "DUT_STATUSES", "OK_STATUSES"]
+
+OK_STATUSES = ("complete",)
+DUT_STATUSES = ("dut_error",)
+
+
+@dataclass
+class Integrity:
+    """Issues found: ``bench`` ones (-> ERROR) and ``dut`` ones (-> FAIL)."""
+
+    bench: list[str] = field(default_factory=list)
+    dut: list[str] = field(default_factory=list)
+    timing: dict[str, float] = field(default_factory=dict)
+
+
+def check_integrity(run: RunData, budget_ns: int | None = None) -> Integrity:
+    """Bench-side and DUT-side issues of a run (``budget_ns``: real-time lateness budget)."""
+    out = Integrity()
+    if not run.complete:
+        out.bench.append("the recording was never finished (the run was killed or crashed)")
+    if run.run_end is None:
+        out.bench.append("the recording has no run_end record")
+    else:
+        status = run.run_end.get("status", "")
+        reason = run.run_end.get("reason", "")
+        if status in DUT_STATUSES:
+            out.dut.append(f"run ended with {status}" + (f": {reason}" if reason else ""))
+        elif status not in OK_STATUSES:
+            out.bench.append(f"run ended with status {status!r}" + (f": {reason}" if reason else ""))
+    if run.truth is None or len(run.truth) < 2:
+        out.bench.append(f"no truth recorded ({TRUTH})")
+    if (run.nav is None or len(run.nav) == 0) and not out.dut:
+        out.bench.append(f"no DUT output recorded ({NAV_SOLUTION})")
+    if run.timing is not None and len(run.timing):
+        late = run.timing["lateness_ns"].astype(np.int64)
+        out.timing = {
+            "steps": float(len(late)),
+            "lateness_max_s": float(np.max(late)) * 1e-9,
+            "lateness_p99_s": float(np.percentile(late, 99)) * 1e-9,
+        }
+        if budget_ns is not None:
+            over = int(np.sum(late > budget_ns))
+            out.timing["over_budget"] = float(over)
+            if over:
+                out.bench.append(
+                    f"{over} of {len(late)} real-time steps missed the timing budget of {budget_ns * 1e-6:g} ms "
+                    f"(worst {float(np.max(late)) * 1e-6:.3f} ms late, {TIMING})"
+                )
+    return out
