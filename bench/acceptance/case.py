@@ -1,0 +1,242 @@
+"""Acceptance test cases: one TOML file states what is run and how it is judged.
+
+A test case names its requirements, the scenario (motion script, or FMU with a driver
+script), the sensor parameter sets, the fault schedule, bench commands, the DUT (a
+registered in-process estimator, an external command line with its links, or the
+synthetic stand-in), the clock mode, the seeds or Monte Carlo count, the scoring
+settings and the acceptance criteria. :func:`load_case` checks all of it on load; every
+error names the file, the key and what was expected. ``docs/test_cases.md`` is the
+reference users read.
+"""
+
+from __future__ import annotations
+
+import copy
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from bench.acceptance.criteria import Criterion
+from bench.errors import ConfigError
+from bench.faults.schedule import FaultSchedule
+from bench.scoring.metrics import ScoringSettings
+
+__all__ = [
+    "TestCase",
+    "ScenarioRef",
+    "SensorSet",
+    "DutSpec",
+    "ClockSpec",
+    "RunSpec",
+    "Command",
+    "load_case",
+    "parse_case",
+    "is_case_file",
+    "CLOCK_MODES",
+    "DUT_KINDS",
+    "merge_tables",
+]
+
+CLOCK_MODES = ("lockstep", "realtime")
+DUT_KINDS = ("synthetic", "in_process", "external")
+
+
+@dataclass(frozen=True)
+class ScenarioRef:
+    """Where the motion comes from: a scenario file (motion script or track), or an FMU
+    with its driver script. Paths are resolved against the case file's folder."""
+
+    script: str | None = None
+    fmu: str | None = None
+    driver: str | None = None
+    vehicle: str | None = None
+    duration_s: float | None = None
+    base: Path | None = None
+
+    def resolve(self, ref: str | None) -> Path | None:
+        """A path of this table made absolute (relative to the case file)."""
+        if ref is None:
+            return None
+        p = Path(ref)
+        return p if p.is_absolute() or self.base is None else (self.base / p).resolve()
+
+
+@dataclass(frozen=True)
+class SensorSet:
+    """One sensor's parameters: a named parameter set and/or inline values (as written)."""
+
+    sensor: str
+    preset: str | None = None
+    params: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class DutSpec:
+    """The estimator under test and how the bench reaches it."""
+
+    kind: str
+    name: str | None = None
+    command: str | None = None
+    config: Mapping[str, Any] = field(default_factory=dict)
+    config_file: str | None = None
+    output_rate_hz: float = 100.0
+    startup_timeout_s: float = 5.0
+    shutdown_timeout_s: float = 5.0
+    links: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    variants: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    synthetic: Any = None
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class ClockSpec:
+    """Lockstep or real time; step, DUT_READY timeout and real-time budget in ns."""
+
+    mode: str = "lockstep"
+    step_ns: int = 10_000_000
+    timeout_ns: int = 5_000_000_000
+    budget_ns: int | None = None
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """Seeds of the runs (one run per seed and variant) and the truth rate."""
+
+    seeds: tuple[int, ...] = (1,)
+    truth_rate_hz: float = 100.0
+
+
+@dataclass(frozen=True)
+class Command:
+    """A BENCH_CMD sent at bench time ``t_ns``: ``grid``, ``geographic`` or ``reset``."""
+
+    t_ns: int
+    command: str
+
+
+@dataclass
+class TestCase:
+    """A parsed, checked test case (see the module docstring).
+
+    ``variant`` is None for the case as written, or the variant a run uses
+    (:meth:`for_variant` merges the variant's overrides into ``dut``).
+    """
+
+    __test__ = False  # not a pytest test class
+
+    id: str
+    title: str
+    requirements: tuple[str, ...]
+    file: str
+    text: str
+    path: Path | None
+    scenario: ScenarioRef
+    sensors: Mapping[str, SensorSet]
+    faults: FaultSchedule
+    commands: tuple[Command, ...]
+    dut: DutSpec
+    clock: ClockSpec
+    run: RunSpec
+    scoring: ScoringSettings
+    criteria: tuple[Criterion, ...]
+    description: str = ""
+    reference: str = ""
+    assumed: tuple[str, ...] = ()
+    shortened: str = ""
+    variant: str | None = None
+
+    def variants(self) -> list[str | None]:
+        """The variants to run: the DUT's named variants, or [None]."""
+        return list(self.dut.variants) or [None]
+
+    def for_variant(self, name: str | None) -> TestCase:
+        """This case with the DUT of variant ``name`` (None: as written)."""
+        if name is None:
+            return self
+        if name not in self.dut.variants:
+            raise ConfigError(
+                f"no variant {name!r}; the case has {', '.join(self.dut.variants) or 'none'}",
+                file=self.file,
+                key="dut.variants",
+            )
+        v = self.dut.variants[name]
+        dut = replace(
+            self.dut,
+            config=merge_tables(self.dut.config, v.get("config", {})),
+            synthetic=v.get("_synthetic", self.dut.synthetic),
+        )
+        return replace(self, dut=dut, variant=name)
+
+    def with_clock(self, mode: str) -> TestCase:
+        """This case run under another clock mode (a command-line override)."""
+        if mode not in CLOCK_MODES:
+            raise ConfigError(f"expected one of {', '.join(CLOCK_MODES)}, found {mode!r}", key="clock.mode")
+        return replace(self, clock=replace(self.clock, mode=mode))
+
+    def with_seeds(self, seeds: tuple[int, ...]) -> TestCase:
+        """This case run with other seeds (a command-line override)."""
+        return replace(self, run=replace(self.run, seeds=tuple(seeds)))
+
+    @property
+    def label(self) -> str:
+        """``id`` or ``id[variant]``."""
+        return self.id if self.variant is None else f"{self.id}[{self.variant}]"
+
+    @property
+    def file_name(self) -> str:
+        return Path(self.file).name
+
+
+def merge_tables(base: Mapping[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
+    """Tables merge recursively; other values (arrays too) replace."""
+    out = copy.deepcopy(dict(base))
+    for k, v in over.items():
+        if isinstance(v, Mapping) and isinstance(out.get(k), Mapping):
+            out[k] = merge_tables(out[k], v)
+        else:
+            out[k] = copy.deepcopy(v)
+    return out
+
+
+def is_case_file(path: Path) -> bool:
+    """Whether a TOML file is a test case (it has a ``[case]`` table); cheap, never raises."""
+    if path.suffix != ".toml" or not path.is_file():
+        return False
+    try:
+        with path.open("rb") as fh:
+            doc = tomllib.load(fh)
+    except (OSError, tomllib.TOMLDecodeError):
+        return path.parent.name == "test_cases"  # a broken case file still is one
+    return isinstance(doc.get("case"), Mapping)
+
+
+def load_case(path: str | Path, *, check_files: bool = True) -> TestCase:
+    """Read and check a test case file."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError("file not found", file=str(p)) from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"not UTF-8 text: {exc}", file=str(p)) from None
+    return parse_case(text, file=str(p), base=p.resolve().parent, check_files=check_files, path=p)
+
+
+def parse_case(
+    text: str,
+    *,
+    file: str,
+    base: Path | None = None,
+    check_files: bool = True,
+    path: Path | None = None,
+) -> TestCase:
+    """Check and convert the text of a test case (``file`` names it in errors)."""
+    from bench.acceptance.schema import build_case
+
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"not valid TOML: {exc}", file=file) from None
+    return build_case(doc, text=text, file=file, base=base, check_files=check_files, path=path)

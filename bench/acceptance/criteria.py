@@ -1,0 +1,268 @@
+"""Acceptance criteria: a metric over a window, against a limit, for a requirement.
+
+A criterion states its limit by meaning -- ``at_most``, ``at_least``, ``within`` (the
+absolute value at most) or ``in_range`` ``[low, high]`` -- with units checked against
+the metric's dimension. An optional band next to the limit turns a pass into MARGINAL:
+``marginal`` (absolute, in the metric's units) or ``marginal_relative`` (a fraction of
+the limit's magnitude). ``relative_to`` makes the criterion a comparison of two variants
+of the DUT run with the same seeds: the value is the metric of this variant divided by the
+same metric of the named one (dimensionless).
+
+Over Monte Carlo runs (``[monte_carlo]``):
+
+* ``each`` (default) -- every run must meet the limit; the verdict is the worst;
+* ``pass_runs = k`` -- at least k runs must meet it;
+* ``percentile = p`` with ``confidence = c`` -- a distribution-free confidence bound of
+  the p-th percentile over the runs (an order statistic chosen by the binomial law) must
+  meet it: the upper bound for ``at_most``/``within``, the lower for ``at_least``;
+  too few runs for the confidence asked is ERROR;
+* ``aggregate = mean | median | max | min`` -- that statistic of the runs' values.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.stats import binom
+
+from bench.acceptance.verdict import Verdict
+from bench.scoring.windows import WindowSpec
+from bench.units import to_unit
+
+__all__ = [
+    "COMPARATORS",
+    "Limit",
+    "MonteCarlo",
+    "Criterion",
+    "judge_value",
+    "RunValue",
+    "Aggregate",
+    "aggregate_runs",
+    "order_statistic_bound",
+    "runs_needed",
+]
+
+COMPARATORS = ("at_most", "at_least", "within", "in_range")
+AGGREGATES = ("mean", "median", "max", "min")
+
+
+@dataclass(frozen=True)
+class Limit:
+    """``comparator`` with SI bounds (``low``/``high``; one of them for one-sided)."""
+
+    comparator: str
+    low: float | None = None
+    high: float | None = None
+
+    def text(self, unit: str) -> str:
+        def f(x: float | None) -> str:
+            return "?" if x is None else f"{_num(to_unit(x, unit))} {unit}".rstrip(" 1")
+
+        if self.comparator == "at_most":
+            return f"<= {f(self.high)}"
+        if self.comparator == "at_least":
+            return f">= {f(self.low)}"
+        if self.comparator == "within":
+            return f"|x| <= {f(self.high)}"
+        return f"{f(self.low)} .. {f(self.high)}"
+
+
+@dataclass(frozen=True)
+class MonteCarlo:
+    """How per-run values combine (see the module docstring)."""
+
+    mode: str = "each"
+    pass_runs: int | None = None
+    percentile: float | None = None
+    confidence: float | None = None
+    aggregate: str | None = None
+
+    def text(self) -> str:
+        if self.mode == "pass_runs":
+            return f"at least {self.pass_runs} runs"
+        if self.mode == "percentile":
+            return f"p{_num(self.percentile or 0)} at {_num(100 * (self.confidence or 0))} % confidence"
+        if self.mode == "aggregate":
+            return f"{self.aggregate} of runs"
+        return "every run"
+
+
+@dataclass(frozen=True)
+class Criterion:
+    """One acceptance criterion of a test case (limits and band in SI)."""
+
+    id: str
+    requirements: tuple[str, ...]
+    metric: str
+    window: WindowSpec
+    limit: Limit
+    unit: str
+    dimension: str
+    marginal: float | None = None
+    marginal_relative: float | None = None
+    paper: str = ""
+    description: str = ""
+    variant: str | None = None
+    relative_to: str | None = None
+    options: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
+    monte_carlo: MonteCarlo = field(default_factory=MonteCarlo)
+
+    def band(self) -> float:
+        """The marginal band, SI (0 without one)."""
+        if self.marginal is not None:
+            return self.marginal
+        if self.marginal_relative is not None:
+            ref = self.limit.high if self.limit.high is not None else self.limit.low
+            return abs(ref or 0.0) * self.marginal_relative
+        return 0.0
+
+    def display(self, value: float) -> float:
+        """An SI value in the criterion's display unit."""
+        return float(to_unit(value, self.unit)) if math.isfinite(value) else value
+
+
+def _num(x: float) -> str:
+    return f"{x:.6g}"
+
+
+def judge_value(limit: Limit, band: float, value: float) -> tuple[Verdict, float]:
+    """Verdict of one value against a limit with a marginal band, and the margin (SI,
+    positive inside the limit). NaN is ERROR (the metric is undefined)."""
+    if math.isnan(value):
+        return Verdict.ERROR, math.nan
+    c = limit.comparator
+    if c == "at_most":
+        margin = limit.high - value  # type: ignore[operator]
+    elif c == "at_least":
+        margin = value - limit.low  # type: ignore[operator]
+    elif c == "within":
+        margin = limit.high - abs(value)  # type: ignore[operator]
+    else:
+        margin = min(value - limit.low, limit.high - value)  # type: ignore[operator]
+    if margin < 0:
+        return Verdict.FAIL, margin
+    if band > 0 and margin < band:
+        return Verdict.MARGINAL, margin
+    return Verdict.PASS, margin
+
+
+@dataclass
+class RunValue:
+    """A criterion's outcome in one run: value (SI, NaN if unmeasured), verdict, why."""
+
+    seed: int
+    value: float
+    verdict: Verdict
+    reason: str = ""
+    details: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class Aggregate:
+    """A criterion's outcome over the runs of a case variant."""
+
+    value: float
+    verdict: Verdict
+    margin: float
+    reason: str = ""
+
+
+def order_statistic_bound(n: int, p: float, confidence: float, upper: bool) -> int | None:
+    """1-based rank r of the order statistic bounding the p-quantile (0<p<1) of n runs
+    with at least ``confidence``: ``P(X_(r) >= q_p) >= c`` (upper, the smallest such r)
+    or ``P(X_(r) <= q_p) >= c`` (lower, the largest such r). None if n runs cannot give
+    that confidence."""
+    if n < 1:
+        return None
+    below = binom.cdf(np.arange(n), n, p)  # P(at most r-1 of n runs below q_p), r = 1..n
+    if upper:
+        ok = np.flatnonzero(below >= confidence)
+        return int(ok[0]) + 1 if len(ok) else None
+    ok = np.flatnonzero(1.0 - below >= confidence)
+    return int(ok[-1]) + 1 if len(ok) else None
+
+
+def runs_needed(p: float, confidence: float, upper: bool) -> int:
+    """Fewest runs whose extreme order statistic bounds the p-quantile at ``confidence``."""
+    q = p if upper else 1.0 - p
+    return math.ceil(math.log(1.0 - confidence) / math.log(q) - 1e-12)
+
+
+def _worst_value(criterion: Criterion, values: Sequence[float]) -> float:
+    c = criterion.limit.comparator
+    if c == "at_most":
+        return max(values)
+    if c == "at_least":
+        return min(values)
+    if c == "within":
+        return max(values, key=abs)
+    lo, hi = criterion.limit.low, criterion.limit.high
+    return min(values, key=lambda v: min(v - lo, hi - v))  # type: ignore[operator]
+
+
+def aggregate_runs(criterion: Criterion, runs: Sequence[RunValue]) -> Aggregate:
+    """Combine the per-run outcomes of one criterion per its Monte Carlo mode."""
+    if not runs:
+        return Aggregate(math.nan, Verdict.ERROR, math.nan, "no run to judge")
+    mc = criterion.monte_carlo
+    band = criterion.band()
+    errors = [r for r in runs if r.verdict is Verdict.ERROR]
+    measured = [r.value for r in runs if not math.isnan(r.value)]
+    if mc.mode == "each":
+        worst_run = max(runs, key=lambda r: r.verdict.rank)
+        if worst_run.verdict is Verdict.ERROR:
+            return Aggregate(math.nan, Verdict.ERROR, math.nan, worst_run.reason or "not measured")
+        if not measured:
+            return Aggregate(math.nan, worst_run.verdict, math.nan, worst_run.reason)
+        v = _worst_value(criterion, measured)
+        verdict, margin = judge_value(criterion.limit, band, v)
+        reason = ""
+        if worst_run.verdict.rank > verdict.rank:  # a DUT failure without a value
+            verdict, reason = worst_run.verdict, worst_run.reason
+        return Aggregate(v, verdict, margin, reason)
+    if mc.mode == "pass_runs":
+        need = int(mc.pass_runs or 0)
+        ok = [r for r in runs if r.verdict.passed]
+        text = f"{len(ok)} of {len(runs)} runs met the limit, {need} required"
+        if len(ok) >= need:
+            marginal = sum(r.verdict is Verdict.MARGINAL for r in ok)
+            verdict = Verdict.MARGINAL if len(ok) - marginal < need else Verdict.PASS
+            return Aggregate(float(len(ok)), verdict, float(len(ok) - need), text)
+        if len(ok) + len(errors) >= need:
+            why = f"{text}; {len(errors)} runs could not be judged"
+            return Aggregate(float(len(ok)), Verdict.ERROR, math.nan, why)
+        return Aggregate(float(len(ok)), Verdict.FAIL, float(len(ok) - need), text)
+    if errors:
+        return Aggregate(math.nan, Verdict.ERROR, math.nan, f"{len(errors)} of {len(runs)} runs could not be judged")
+    if len(measured) < len(runs):
+        bad = next(r for r in runs if math.isnan(r.value))
+        return Aggregate(math.nan, bad.verdict, math.nan, bad.reason)
+    x = np.sort(np.array(measured))
+    if mc.mode == "aggregate":
+        fn = {"mean": np.mean, "median": np.median, "max": np.max, "min": np.min}[mc.aggregate or "mean"]
+        v = float(fn(x))
+        verdict, margin = judge_value(criterion.limit, band, v)
+        return Aggregate(v, verdict, margin, f"{mc.aggregate} of {len(x)} runs")
+    # percentile with confidence
+    p = float(mc.percentile or 50.0) / 100.0
+    conf = float(mc.confidence or 0.5)
+    upper = criterion.limit.comparator in ("at_most", "within")
+    values = np.sort(np.abs(x)) if criterion.limit.comparator == "within" else x
+    r = order_statistic_bound(len(values), p, conf, upper)
+    if r is None:
+        need = runs_needed(p, conf, upper)
+        return Aggregate(
+            math.nan,
+            Verdict.ERROR,
+            math.nan,
+            f"{len(values)} runs cannot bound the {100 * p:g}th percentile at {100 * conf:g} % confidence; "
+            f"at least {need} are needed",
+        )
+    v = float(values[r - 1])
+    verdict, margin = judge_value(criterion.limit, band, v)
+    side = "upper" if upper else "lower"
+    return Aggregate(v, verdict, margin, f"{side} {100 * conf:g} % bound of p{100 * p:g}: run value #{r} of {len(x)}")

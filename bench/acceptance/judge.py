@@ -1,0 +1,191 @@
+"""Judging: criteria applied to recordings, runs combined into a case verdict.
+
+:func:`score_recording` judges one recording against its test case (the one attached to
+the recording unless another is given): integrity first (bench-side failures make every
+criterion ERROR, a ``dut_error`` ending makes the run FAIL), then every criterion of the
+run's variant from the recording alone. :func:`judge_case` combines the runs of a case
+(variants, Monte Carlo seeds, variant comparisons) into criterion and case verdicts.
+
+Live runs are judged by scoring their finished recording with the very same functions,
+so ``bench score`` reproduces a live verdict bit for bit.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from bench.acceptance.case import TestCase, parse_case
+from bench.acceptance.criteria import Aggregate, Criterion, RunValue, aggregate_runs, judge_value
+from bench.acceptance.verdict import Verdict, worst
+from bench.errors import ConfigError, RecordingError
+from bench.scoring.data import DutDataError, NoDataError, RunData, load_run
+from bench.scoring.metrics import Scorer
+
+__all__ = ["RunResult", "CriterionResult", "CaseResult", "score_recording", "score_run", "judge_case", "case_of"]
+
+
+@dataclass
+class RunResult:
+    """One run judged: its identity, verdict, issues and per-criterion outcomes."""
+
+    recording: str
+    case_id: str
+    variant: str | None
+    seed: int
+    verdict: Verdict
+    bench_issues: list[str] = field(default_factory=list)
+    dut_issues: list[str] = field(default_factory=list)
+    values: dict[str, RunValue] = field(default_factory=dict)
+    raw: dict[str, RunValue] = field(default_factory=dict)  # metrics of comparison criteria
+    overview: dict[str, Any] = field(default_factory=dict)
+    timing: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass
+class CriterionResult:
+    """A criterion judged over the runs of one variant."""
+
+    criterion: Criterion
+    variant: str | None
+    aggregate: Aggregate
+    runs: list[RunValue]
+
+    @property
+    def verdict(self) -> Verdict:
+        return self.aggregate.verdict
+
+
+@dataclass
+class CaseResult:
+    """A test case judged: verdict, criteria, runs, and why it could not be judged."""
+
+    case_id: str
+    title: str
+    file: str
+    requirements: tuple[str, ...]
+    verdict: Verdict
+    criteria: list[CriterionResult] = field(default_factory=list)
+    runs: list[RunResult] = field(default_factory=list)
+    errors: list[str] = field(default_factory=list)
+    case: TestCase | None = None
+    elapsed_s: float = 0.0
+
+
+def case_of(run: RunData) -> TestCase:
+    """The test case attached to a recording."""
+    att = run.case_attachment()
+    if att is None:
+        raise RecordingError(f"{run.path}: no test case attached (case/<file>); give one with --case")
+    name, data = att
+    return parse_case(data.decode("utf-8"), file=f"{run.path}:case/{name}", check_files=False)
+
+
+def _applies(c: Criterion, variant: str | None) -> bool:
+    return c.variant is None or c.variant == variant
+
+
+def score_run(run: RunData, case: TestCase) -> RunResult:
+    """Judge one loaded recording against ``case``."""
+    variant = run.run_start.get("variant") or None
+    if variant is not None and variant not in case.dut.variants:
+        raise ConfigError(
+            f"the recording is of variant {variant!r}, which the case does not define", file=case.file, key="dut"
+        )
+    try:
+        seed = int(run.run_start.get("seed", "0"))
+    except ValueError:
+        seed = 0
+    scorer = Scorer(run, case.scoring)
+    integ = scorer.integrity()
+    result = RunResult(str(run.path), case.id, variant, seed, Verdict.PASS, integ.bench, integ.dut, timing=integ.timing)
+    for c in case.criteria:
+        compared = c.relative_to is not None
+        if compared and variant not in (c.variant, c.relative_to):
+            continue
+        if not compared and not _applies(c, variant):
+            continue
+        rv = _measure(scorer, c, seed, integ.bench, integ.dut)
+        if compared:
+            result.raw[c.id] = rv
+        else:
+            result.values[c.id] = rv
+    try:
+        result.overview = scorer.overview() if not integ.bench else {}
+    except (NoDataError, DutDataError):
+        result.overview = {}
+    if integ.bench:
+        result.verdict = Verdict.ERROR
+    elif integ.dut:
+        result.verdict = worst([Verdict.FAIL, *(v.verdict for v in result.values.values())])
+    else:
+        result.verdict = worst(v.verdict for v in result.values.values())
+    return result
+
+
+def _measure(scorer: Scorer, c: Criterion, seed: int, bench: list[str], dut: list[str]) -> RunValue:
+    try:
+        mv = scorer.metric(c.metric, c.window, c.options)
+    except NoDataError as exc:
+        if dut and not bench:
+            return RunValue(seed, math.nan, Verdict.FAIL, f"{exc} (the DUT failed: {'; '.join(dut)})")
+        return RunValue(seed, math.nan, Verdict.ERROR, str(exc) if not bench else "; ".join(bench))
+    except DutDataError as exc:
+        verdict = Verdict.ERROR if bench else Verdict.FAIL
+        return RunValue(seed, math.nan, verdict, str(exc) if not bench else "; ".join(bench))
+    if c.relative_to is not None:
+        return RunValue(seed, mv.value, Verdict.PASS, "", mv.details)
+    verdict, _ = judge_value(c.limit, c.band(), mv.value)
+    reason = "metric undefined (NaN)" if verdict is Verdict.ERROR else ""
+    if bench:
+        verdict, reason = Verdict.ERROR, "; ".join(bench)
+    return RunValue(seed, mv.value, verdict, reason, mv.details)
+
+
+def score_recording(path: str | Path, case: TestCase | None = None) -> tuple[TestCase, RunResult]:
+    """Judge a recording file (against its attached case unless ``case`` is given)."""
+    run = load_run(path)
+    case = case or case_of(run)
+    return case, score_run(run, case)
+
+
+def _ratio(c: Criterion, mine: RunValue, base: RunValue) -> RunValue:
+    if mine.verdict is Verdict.ERROR or base.verdict is Verdict.ERROR:
+        return RunValue(mine.seed, math.nan, Verdict.ERROR, mine.reason or base.reason)
+    if math.isnan(mine.value) or math.isnan(base.value):
+        return RunValue(mine.seed, math.nan, Verdict.FAIL, mine.reason or base.reason)
+    if base.value == 0.0:
+        value = 0.0 if mine.value == 0.0 else math.inf
+    else:
+        value = mine.value / base.value
+    verdict, _ = judge_value(c.limit, c.band(), value)
+    return RunValue(mine.seed, value, verdict, "", {"value": mine.value, "baseline": base.value})
+
+
+def judge_case(case: TestCase, runs: list[RunResult], errors: list[str] | None = None) -> CaseResult:
+    """Combine the runs of a case into per-criterion and case verdicts."""
+    out = CaseResult(case.id, case.title, case.file, case.requirements, Verdict.PASS, runs=runs, case=case)
+    out.errors = list(errors or [])
+    variants = case.variants()
+    for c in case.criteria:
+        targets = [c.variant] if c.variant is not None else variants
+        for v in targets:
+            mine = [r for r in runs if r.variant == v]
+            if c.relative_to is None:
+                values = [r.values[c.id] for r in mine if c.id in r.values]
+            else:
+                base = {r.seed: r for r in runs if r.variant == c.relative_to}
+                values = []
+                for r in mine:
+                    if r.seed in base and c.id in r.raw and c.id in base[r.seed].raw:
+                        values.append(_ratio(c, r.raw[c.id], base[r.seed].raw[c.id]))
+                    else:
+                        values.append(RunValue(r.seed, math.nan, Verdict.ERROR, f"no {c.relative_to} run with seed {r.seed}"))
+            out.criteria.append(CriterionResult(c, v, aggregate_runs(c, values), values))
+    verdicts = [cr.verdict for cr in out.criteria] + [r.verdict for r in runs]
+    if out.errors or not runs:
+        verdicts.append(Verdict.ERROR)
+    out.verdict = worst(verdicts)
+    return out

@@ -1,0 +1,175 @@
+"""The seam between acceptance and whatever executes a run: :class:`CaseRunner`.
+
+Acceptance never drives links, clocks or estimators itself. It asks a runner, chosen by
+the test case's ``[dut] kind``, to execute one run of a case and to return the finished
+recording; everything it judges comes from that file (:mod:`bench.acceptance.judge`).
+
+A runner implements::
+
+    def run(self, case: TestCase, seed: int, out_dir: Path, *,
+            progress: Callable[[float, float], None] | None = None) -> Path
+
+* ``case`` is already specialised to one variant (``case.variant``; its ``dut.config``
+  merged), with the clock mode and seeds the user chose;
+* the runner writes one MCAP recording into ``out_dir`` (name from
+  :func:`recording_name`) with the topics and metadata of ``docs/scoring.md`` -- truth,
+  DUT output, faults, segments, bad frames, timing, commands, ``run_start`` (with
+  :func:`run_start_metadata`) and ``run_end``, and the case file attached as
+  ``case/<file>`` (:func:`case_attachments`) -- and closes it even when the run fails,
+  with the ``run_end`` status saying why (``dut_error`` for a DUT failure, ``error``,
+  ``timing_budget``, ``link_lost``... for a bench failure);
+* it raises only when it could not produce a recording at all (a
+  :class:`~bench.errors.ConfigError` for a case it cannot run as written, another
+  :class:`~bench.errors.BenchError` otherwise); the run is then ERROR;
+* ``progress(done_s, total_s)`` reports bench seconds.
+
+Runners register by DUT kind with :func:`register_runner`, or through the entry-point
+group ``bench.runners`` (name = DUT kind, value = a zero-argument factory). The bench
+ships the ``synthetic`` runner; the run engine provides ``in_process`` and ``external``.
+"""
+
+from __future__ import annotations
+
+import platform
+import subprocess
+from collections.abc import Callable
+from importlib import import_module
+from importlib.metadata import entry_points
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Protocol
+
+import numpy as np
+
+from bench import __version__
+from bench.errors import BenchError
+from bench.paths import project_root
+
+if TYPE_CHECKING:
+    from bench.acceptance.case import TestCase
+
+__all__ = [
+    "CaseRunner",
+    "Progress",
+    "register_runner",
+    "runner_for",
+    "RunnerUnavailableError",
+    "recording_name",
+    "run_start_metadata",
+    "case_attachments",
+    "scenario_file",
+    "git_commit",
+    "ENTRY_POINT_GROUP",
+]
+
+Progress = Callable[[float, float], None]
+ENTRY_POINT_GROUP = "bench.runners"
+
+
+class CaseRunner(Protocol):
+    """Executes one run of a test case and returns its finished recording."""
+
+    def run(self, case: TestCase, seed: int, out_dir: Path, *, progress: Progress | None = None) -> Path: ...
+
+
+class RunnerUnavailableError(BenchError):
+    """No runner is registered for the case's DUT kind (the bench cannot run it: ERROR)."""
+
+
+_FACTORIES: dict[str, Callable[[], CaseRunner]] = {}
+_BUILTIN = {"synthetic": "bench.acceptance.synthetic:SyntheticRunner"}
+
+
+def register_runner(dut_kind: str, factory: Callable[[], CaseRunner]) -> None:
+    """Make ``factory()`` the runner of cases whose ``[dut] kind`` is ``dut_kind``."""
+    _FACTORIES[dut_kind] = factory
+
+
+def runner_for(case: TestCase) -> CaseRunner:
+    """The runner of ``case`` (registered, from an entry point, or built in)."""
+    kind = case.dut.kind
+    if kind not in _FACTORIES:
+        for ep in entry_points(group=ENTRY_POINT_GROUP):
+            if ep.name == kind:
+                _FACTORIES[kind] = ep.load()
+                break
+    if kind not in _FACTORIES and kind in _BUILTIN:
+        mod, _, attr = _BUILTIN[kind].partition(":")
+        _FACTORIES[kind] = getattr(import_module(mod), attr)
+    if kind not in _FACTORIES:
+        raise RunnerUnavailableError(
+            f"no runner for DUT kind {kind!r} in this installation (the run engine registers "
+            f"'in_process' and 'external' runners; group {ENTRY_POINT_GROUP!r})"
+        )
+    return _FACTORIES[kind]()
+
+
+def recording_name(case: TestCase, seed: int) -> str:
+    """File name of a run's recording: ``<case id>[-<variant>]-s<seed>.mcap``."""
+    variant = f"-{case.variant}" if case.variant else ""
+    return f"{case.id}{variant}-s{seed}.mcap"
+
+
+def git_commit() -> str:
+    """Commit of the project checkout (``+dirty`` with local changes), or 'unknown'."""
+    try:
+        out = subprocess.run(
+            ["git", "-C", str(project_root()), "rev-parse", "HEAD"], capture_output=True, text=True, timeout=5
+        )
+        dirty = subprocess.run(
+            ["git", "-C", str(project_root()), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            timeout=5,
+        )
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return (out.stdout.strip() or "unknown") + ("+dirty" if dirty.stdout.strip() else "")
+
+
+def run_start_metadata(case: TestCase, seed: int, runner: str, **extra: Any) -> dict[str, Any]:
+    """The ``run_start`` record every runner writes (extend with ``extra``)."""
+    return {
+        "kind": "acceptance",
+        "runner": runner,
+        "case": case.id,
+        "case_title": case.title,
+        "case_file": case.file_name,
+        "variant": case.variant or "",
+        "seed": str(seed),
+        "clock_mode": case.clock.mode,
+        "dut_kind": case.dut.kind,
+        "dut_name": case.dut.name or "",
+        "requirements": list(case.requirements),
+        "bench_version": __version__,
+        "git_commit": git_commit(),
+        "host": platform.node(),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        **extra,
+    }
+
+
+def case_attachments(case: TestCase) -> list[tuple[str, bytes, str]]:
+    """``(name, data, media type)`` of the files a recording carries: the case itself as
+    ``case/<file>`` (so ``bench score`` can re-judge without it) and its scenario files."""
+    out = [(f"case/{case.file_name}", case.text.encode(), "application/toml")]
+    ref = case.scenario
+    paths = [scenario_file(case), ref.resolve(ref.driver), ref.resolve(ref.vehicle)]
+    for p in paths:
+        if p is not None and p.is_file():
+            out.append((f"scenario/{p.name}", p.read_bytes(), "application/toml"))
+    return out
+
+
+def scenario_file(case: TestCase) -> Path | None:
+    """The scenario file of a motion-script case: a path next to the case, or an id
+    found in ``test_cases/scenarios/``; None for FMU scenarios."""
+    ref = case.scenario
+    if ref.script is None:
+        return None
+    p = ref.resolve(ref.script)
+    if p is not None and p.exists():
+        return p
+    from bench.scenario.loader import find_scenario
+
+    return find_scenario(ref.script)

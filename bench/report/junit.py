@@ -1,0 +1,92 @@
+"""JUnit XML of an acceptance run, for CI systems and test-management tools.
+
+One ``<testsuite>`` per test case; one ``<testcase>`` per criterion and variant
+(``classname`` the case id, ``name`` the criterion id with its variant), carrying the
+requirement ids, metric, value, limit and paper figure as ``<property>`` elements.
+FAIL is a ``<failure>``, ERROR an ``<error>`` (never a failure); MARGINAL passes with
+a ``verdict = MARGINAL`` property. A case that could not be loaded or run is a
+testcase ``<load>`` with an ``<error>``.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from collections.abc import Sequence
+from pathlib import Path
+
+from bench.acceptance.judge import CaseResult
+from bench.acceptance.verdict import Verdict
+from bench.report.results import criterion_json
+
+__all__ = ["junit_xml", "write_junit"]
+
+
+def _fmt(v: object) -> str:
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return "" if v is None else str(v)
+
+
+def junit_xml(cases: Sequence[CaseResult], name: str = "bench accept") -> ET.Element:
+    """The ``<testsuites>`` element of an acceptance run."""
+    root = ET.Element("testsuites", name=name)
+    totals = {"tests": 0, "failures": 0, "errors": 0}
+    for cr in cases:
+        suite = ET.SubElement(root, "testsuite", name=cr.case_id, file=cr.file)
+        props = ET.SubElement(suite, "properties")
+        ET.SubElement(props, "property", name="title", value=cr.title)
+        ET.SubElement(props, "property", name="verdict", value=str(cr.verdict))
+        for r in cr.requirements:
+            ET.SubElement(props, "property", name="requirement", value=r)
+        n = {"tests": 0, "failures": 0, "errors": 0}
+        per = cr.elapsed_s / max(1, len(cr.criteria))
+        for res in cr.criteria:
+            j = criterion_json(res)
+            label = res.criterion.id + (f"[{res.variant}]" if res.variant else "")
+            tc = ET.SubElement(suite, "testcase", classname=cr.case_id, name=label, time=f"{per:.3f}")
+            tp = ET.SubElement(tc, "properties")
+            for r in res.criterion.requirements:
+                ET.SubElement(tp, "property", name="requirement", value=r)
+            for key in ("metric", "window_text", "limit", "unit", "value", "margin", "paper", "verdict", "monte_carlo"):
+                ET.SubElement(tp, "property", name=key, value=_fmt(j[key]))
+            message = (
+                f"{res.criterion.metric} = {_fmt(j['value'])} {j['unit']} ({j['window']}), "
+                f"limit {j['limit']}: {res.verdict}" + (f" -- {res.aggregate.reason}" if res.aggregate.reason else "")
+            )
+            n["tests"] += 1
+            if res.verdict is Verdict.FAIL:
+                ET.SubElement(tc, "failure", message=message, type="FAIL").text = message
+                n["failures"] += 1
+            elif res.verdict is Verdict.ERROR:
+                ET.SubElement(tc, "error", message=message, type="ERROR").text = message
+                n["errors"] += 1
+            else:
+                ET.SubElement(tc, "system-out").text = message
+        problems = list(cr.errors) + [
+            f"run {r.seed}{'/' + r.variant if r.variant else ''}: {'; '.join(r.bench_issues + r.dut_issues)}"
+            for r in cr.runs
+            if r.bench_issues or r.dut_issues
+        ]
+        if problems or not cr.criteria:
+            tc = ET.SubElement(suite, "testcase", classname=cr.case_id, name="load")
+            text = "\n".join(problems) or "no criterion was judged"
+            kind = "error" if cr.verdict is Verdict.ERROR or cr.errors else "failure"
+            ET.SubElement(tc, kind, message=text.splitlines()[0], type=str(cr.verdict)).text = text
+            n["tests"] += 1
+            n["errors" if kind == "error" else "failures"] += 1
+        for k, v in n.items():
+            suite.set(k, str(v))
+            totals[k] += v
+    for k, v in totals.items():
+        root.set(k, str(v))
+    return root
+
+
+def write_junit(cases: Sequence[CaseResult], path: str | Path) -> Path:
+    """Write the JUnit XML file."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    tree = ET.ElementTree(junit_xml(cases))
+    ET.indent(tree)
+    tree.write(p, encoding="utf-8", xml_declaration=True)
+    return p

@@ -1,0 +1,97 @@
+"""Summary tables of an acceptance run, for terminals (text) and documents (Markdown).
+
+One row per criterion and variant: case, variant, criterion, requirement, what is
+measured over which window, the value, the limit, the paper's figure and the verdict;
+then one row per case with its verdict and what went wrong.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from bench.acceptance.judge import CaseResult
+from bench.report.results import criterion_json
+
+__all__ = ["summary_rows", "text_table", "markdown_table", "case_lines"]
+
+HEADER = ("case", "variant", "criterion", "requirement", "metric / window", "value", "limit", "paper", "verdict")
+
+
+def _value(j: dict) -> str:
+    v = j["value"]
+    if v is None:
+        return "n/a"
+    if isinstance(v, str):
+        return v
+    unit = "" if j["unit"] == "1" else f" {j['unit']}"
+    return f"{v:.4g}{unit}"
+
+
+def summary_rows(cases: Sequence[CaseResult]) -> list[tuple[str, ...]]:
+    rows: list[tuple[str, ...]] = []
+    for cr in cases:
+        if not cr.criteria:
+            rows.append((cr.case_id, "", "-", ", ".join(cr.requirements), "(not judged)", "", "", "", str(cr.verdict)))
+        for res in cr.criteria:
+            j = criterion_json(res)
+            what = f"{j['metric']} / {j['window']}"
+            if j["relative_to"]:
+                what += f" ÷ {j['relative_to']}"
+            rows.append(
+                (
+                    cr.case_id,
+                    res.variant or "",
+                    res.criterion.id,
+                    ", ".join(j["requirements"]),
+                    what,
+                    _value(j),
+                    j["limit"],
+                    j["paper"],
+                    str(res.verdict),
+                )
+            )
+    return rows
+
+
+def _clip(s: str, n: int) -> str:
+    return s if len(s) <= n else s[: n - 1] + "…"
+
+
+def text_table(cases: Sequence[CaseResult], width: int = 40) -> str:
+    """A fixed-width table (long cells clipped to ``width``)."""
+    rows = [HEADER, *summary_rows(cases)]
+    rows = [tuple(_clip(c, width) for c in r) for r in rows]
+    widths = [max(len(r[i]) for r in rows) for i in range(len(HEADER))]
+    lines = []
+    for k, r in enumerate(rows):
+        lines.append("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip())
+        if k == 0:
+            lines.append("  ".join("-" * w for w in widths))
+    return "\n".join(lines + [""] + case_lines(cases))
+
+
+def case_lines(cases: Sequence[CaseResult]) -> list[str]:
+    """One line per case: verdict, title, and the first problem if any."""
+    out = []
+    for cr in cases:
+        problems = list(cr.errors)
+        for r in cr.runs:
+            for issue in r.bench_issues + r.dut_issues:
+                problems.append(f"seed {r.seed}{'/' + r.variant if r.variant else ''}: {issue}")
+        dut = "" if cr.case is None else f" [DUT: {cr.case.dut.kind}{' ' + cr.case.dut.name if cr.case.dut.name else ''}]"
+        line = f"{str(cr.verdict):<8} {cr.case_id}: {cr.title}{dut}"
+        if problems:
+            line += f" -- {problems[0]}" + (f" (+{len(problems) - 1} more)" if len(problems) > 1 else "")
+        out.append(line)
+    return out
+
+
+def markdown_table(cases: Sequence[CaseResult]) -> str:
+    """The same table in Markdown."""
+    rows = summary_rows(cases)
+    out = ["| " + " | ".join(HEADER) + " |", "|" + "---|" * len(HEADER)]
+    for r in rows:
+        out.append("| " + " | ".join(c.replace("|", "\\|") for c in r) + " |")
+    out.append("")
+    out.extend(f"- {line}" for line in case_lines(cases))
+    return "\n".join(out) + "\n"
