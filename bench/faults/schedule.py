@@ -59,7 +59,9 @@ class _Kind:
     description: str
 
 
-_REGISTRY: dict[tuple[str, str], _Kind] = {}
+#: (layer, kind, targets) -> kind; one kind name may be registered for several target
+#: sets with different parameters (e.g. ``bias_step`` of the Doppler radar and of the IMU).
+_REGISTRY: dict[tuple[str, str, tuple[str, ...]], _Kind] = {}
 
 
 def register_kind(
@@ -72,16 +74,17 @@ def register_kind(
     """Declare a fault kind that ``targets`` accept on ``layer``.
 
     A target ``"*"`` accepts any target name (wire faults on any message or stream);
-    a target ending in ``*`` matches by prefix (``"can:*"``).
+    a target ending in ``*`` matches by prefix (``"can:*"``). The same kind may be
+    registered again for other targets; a window uses the registration its target matches.
     """
     if layer not in LAYERS:
         raise ValueError(f"layer must be one of {LAYERS}, found {layer!r}")
-    _REGISTRY[(layer, kind)] = _Kind(layer, tuple(targets), kind, dict(params or {}), description)
+    _REGISTRY[(layer, kind, tuple(targets))] = _Kind(layer, tuple(targets), kind, dict(params or {}), description)
 
 
 def registered_kinds() -> list[_Kind]:
     """Every registered kind (for documentation and error messages)."""
-    return sorted(_REGISTRY.values(), key=lambda k: (k.layer, k.kind))
+    return sorted(_REGISTRY.values(), key=lambda k: (k.layer, k.kind, k.targets))
 
 
 def _target_ok(target: str, allowed: tuple[str, ...]) -> bool:
@@ -209,14 +212,16 @@ def parse_schedule(tables: Any, *, file: str | None = None, key: str = "fault", 
         if layer not in LAYERS:
             raise ConfigError(f"expected one of {', '.join(LAYERS)}, found {layer!r}", file=file, key=f"{k}.layer")
         kind = t.get("kind")
-        spec = _REGISTRY.get((layer, str(kind)))
-        if spec is None:
-            known = ", ".join(sorted(kk for (ll, kk) in _REGISTRY if ll == layer)) or "none registered"
+        candidates = [v for (ll, kk, _), v in _REGISTRY.items() if ll == layer and kk == str(kind)]
+        if not candidates:
+            known = ", ".join(sorted({kk for (ll, kk, _) in _REGISTRY if ll == layer})) or "none registered"
             raise ConfigError(f"unknown {layer} fault kind {kind!r}; known: {known}", file=file, key=f"{k}.kind")
         target = t.get("target")
-        if not isinstance(target, str) or not _target_ok(target, spec.targets):
+        spec = next((c for c in candidates if isinstance(target, str) and _target_ok(target, c.targets)), None)
+        if spec is None:
+            allowed_targets = [a for c in candidates for a in c.targets]
             raise ConfigError(
-                f"a {kind} fault applies to {', '.join(spec.targets)}, found target {target!r}",
+                f"a {kind} fault applies to {', '.join(allowed_targets)}, found target {target!r}",
                 file=file,
                 key=f"{k}.target",
             )

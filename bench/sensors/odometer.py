@@ -10,10 +10,11 @@ a sideslip moves the body sideways, which the wheel does not see.
 
 The sensor turns the wheel's travel into pulses of ``pulse_equivalent`` metres with a
 scale-factor error ``(1 + k + m(t))`` (``k`` constant, ``m`` first-order Gauss-Markov):
-the wheel's travel over each interval (trapezoid on the samples) is added to a carried
-fraction of a pulse, and whole pulses are counted, one per pulse whatever the direction
-(ICD ODOMETER). The speed is the wheel speed through the same scale factor plus white
-noise, forward positive; ``reverse`` is set while the wheel turns backwards.
+the wheel's travel over each interval (trapezoid on the samples), in pulses, is added to
+the travel carried from before, and its whole part is the pulse count, one per pulse
+whatever the direction (ICD ODOMETER); the fraction of a pulse carries on. The speed is
+the wheel speed through the same scale factor plus white noise, forward positive;
+``reverse`` is set while the wheel turns backwards.
 
 Topic ``/<name>`` (``/odometer``), one record per sample at ``rate`` (100 Hz).
 """
@@ -100,8 +101,7 @@ class Odometer(SensorModel):
         self.faults = list(faults)
         # carried state
         self._prev: tuple[int, float, float] | None = None  # t_ns, wheel speed, measured wheel speed
-        self._pulses = 0
-        self._residual = 0.0  # fraction of a pulse
+        self._travel = 0.0  # measured travel in pulses: its whole part is the count, the rest carries
         self._distance = 0.0
 
     def topics(self) -> list[TopicSpec]:
@@ -145,12 +145,12 @@ class Odometer(SensorModel):
         mm = np.concatenate([[m_prev], measured])
         ds_wheel = 0.5 * (ww[1:] + ww[:-1]) * dt
         ds_meas = 0.5 * (mm[1:] + mm[:-1]) * dt * sf
-        distance = self._distance + np.cumsum(np.abs(ds_wheel))
-        cum = self._residual + np.cumsum(np.abs(ds_meas)) / self.q
-        whole = np.floor(cum)
-        pulses = self._pulses + whole.astype(np.int64)
-        self._residual = float(cum[-1] - whole[-1])
-        self._pulses = int(pulses[-1])
+        # running sums continued from the carried totals, so that any cut of the run adds in
+        # the same order; the pulse count is the whole part of the travel in pulses
+        distance = np.cumsum(np.concatenate([[self._distance], np.abs(ds_wheel)]))[1:]
+        cum = np.cumsum(np.concatenate([[self._travel], np.abs(ds_meas) / self.q]))[1:]
+        pulses = np.floor(cum + 1e-9).astype(np.int64)  # exactly n pulses of travel count n
+        self._travel = float(cum[-1])
         self._distance = float(distance[-1])
         self._prev = (int(t[-1]), float(wheel[-1]), float(measured[-1]))
         speed = np.where(silent, 0.0, sf * wheel + noise)

@@ -139,7 +139,9 @@ class RandomWalk:
 
     def draw(self, n: int) -> np.ndarray:
         """The next ``n`` samples, (n,) or (n, d)."""
-        x = self.state + np.cumsum(self.rng.standard_normal((n, len(self.q))) * self.step, axis=0)
+        steps = self.rng.standard_normal((n, len(self.q))) * self.step
+        # summed on from the carried state, so any cut of the run adds in the same order
+        x = np.cumsum(np.vstack([self.state[None, :], steps]), axis=0)[1:]
         if n:
             self.state = x[-1].copy()
         return x[:, 0] if self._scalar else x

@@ -126,7 +126,9 @@ def build_suite(
         name = table.get("name", kind)
         if not isinstance(name, str) or not name.isidentifier() or not name.startswith(kind):
             raise ConfigError(
-                f"expected a name starting with {kind!r} (letters, digits, _), found {name!r}", file=file, key=f"{kind}.name"
+                f"expected a name starting with {kind!r} (letters, digits, _), found {name!r}",
+                file=file,
+                key=f"{kind}.name",
             )
         res = resolve(kind, table, specs, file=file, where=kind, allow=("enabled", "name"))
         faults = windows_for(schedule, name)
