@@ -12,7 +12,7 @@ one side and payload bytes on the other:
   ``"format"``, ``"counter"`` or ``"unknown_id"``.
 
 Values are SI (m, m/s, rad, integer ns); the quantity names are listed per message in
-:data:`QUANTITIES` and in docs/wire.md. A value that does not fit its field raises
+:data:`bench.wire.quantities.QUANTITIES` and in docs/wire.md. A value that does not fit its field raises
 ``CodecError("range", ...)`` naming the message and the field. Classic frames carry the
 CRC-8 over ``(ID & 0xFF)`` and bytes 0..6 in byte 7; FD frames the CRC-16 over the bytes
 before it in their last two bytes. Every bit no signal covers must be zero.
@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
 from functools import cache
 
 import numpy as np
@@ -32,92 +31,16 @@ from bench.frames import CanBatch
 from bench.wire.bits import INT64_MAX_US, covered_mask, pack, round_div, unpack
 from bench.wire.crc import crc8_can_rows, crc16_ccitt_false_rows
 from bench.wire.dbc import MessageSpec, SignalSpec, load_specs, spec
+from bench.wire.quantities import QUANTITIES, Quantity
+from bench.wire.sequence import CounterSequence
 
-__all__ = ["Quantity", "CanCodec", "codec", "codec_for_id", "QUANTITIES", "DECODE_KINDS"]
+__all__ = ["CanCodec", "CanEncoder", "codec", "codec_for_id", "DECODE_KINDS"]
 
 #: Status codes of batch decoding: ``status == 0`` good, else ``DECODE_KINDS[status]``.
 DECODE_KINDS = ("ok", "length", "crc", "format", "range")
 
 _UNIT_TO_SI = {"deg": math.pi / 180.0, "arcmin": math.pi / 180.0 / 60.0}
 
-
-@dataclass(frozen=True)
-class Quantity:
-    """An SI quantity of a message and the DBC signal(s) that carry it.
-
-    ``kind``: ``"time_us"``/``"time_ms"`` (integer ns <-> integer us/ms, rounded to nearest),
-    ``"float"`` (SI float, DBC unit converted: deg and arcmin to rad), ``"angle_wrap"``
-    (float wrapped into [0, 360) deg before rounding), ``"int"`` (the raw integer),
-    ``"int_wrap"`` (an integer taken modulo the field range: rolling counts), ``"bits"``
-    (an integer bit mask spread over 1-bit signals, bit i to ``signals[i]``). A quantity
-    with three ``float`` signals is a 3-vector, shape (N, 3).
-    """
-
-    name: str
-    signals: tuple[str, ...]
-    kind: str = "float"
-
-
-def _q(name: str, *signals: str, kind: str = "float") -> Quantity:
-    return Quantity(name, tuple(signals), kind)
-
-
-#: The SI quantities of every message, by message name.
-QUANTITIES: dict[str, tuple[Quantity, ...]] = {
-    "BENCH_TIME": (
-        _q("time_ns", "BenchTime", kind="time_us"),
-        _q("lockstep", "Lockstep", kind="int"),
-        _q("alive", "AliveCounter", kind="int"),
-    ),
-    "BENCH_EPOCH": (_q("epoch_utc_ns", "EpochUtc", kind="time_ms"), _q("alive", "AliveCounter", kind="int")),
-    "BENCH_CMD": (_q("command", "Command", kind="int"), _q("alive", "AliveCounter", kind="int")),
-    "ODOMETER": (
-        _q("pulse_count", "PulseCount", kind="int_wrap"),
-        _q("speed", "Speed"),
-        _q("reverse", "Reverse", kind="int"),
-        _q("valid", "Valid", kind="int"),
-        _q("alive", "AliveCounter", kind="int"),
-    ),
-    "DRIVER_INPUT": (
-        _q("left_lever", "LeftLever", kind="int"),
-        _q("right_lever", "RightLever", kind="int"),
-        _q("steering", "SteeringAngle"),
-        _q("brake", "Brake", kind="int"),
-        _q("alive", "AliveCounter", kind="int"),
-    ),
-    "DOPPLER": (
-        _q("speed", "ForwardSpeed"),
-        _q("quality", "SignalQuality", kind="int"),
-        _q("valid", "Valid", kind="int"),
-        _q("low_signal", "LowSignal", kind="int"),
-        _q("alive", "AliveCounter", kind="int"),
-    ),
-    "NAV_SOLUTION": (
-        _q("t_ns", "TimeOfValidity", kind="time_us"),
-        _q("lat", "Latitude"),
-        _q("lon", "Longitude"),
-        _q("h", "Height"),
-        _q("vel_n", "VelEast", "VelNorth", "VelUp"),
-        _q("heading", "Heading", kind="angle_wrap"),
-        _q("pitch", "Pitch"),
-        _q("roll", "Roll"),
-        _q("frame", "NavFrame", kind="int"),
-        _q("mode", "Mode", kind="int"),
-        _q("valid", "SolutionValid", kind="int"),
-        _q("epoch", "EpochCounter", kind="int"),
-    ),
-    "NAV_QUALITY": (
-        _q("t_ns", "TimeOfValidity", kind="time_us"),
-        _q("sigma_pos", "SigmaPosEast", "SigmaPosNorth", "SigmaPosUp"),
-        _q("sigma_vel", "SigmaVelEast", "SigmaVelNorth", "SigmaVelUp"),
-        _q("sigma_att", "SigmaHeading", "SigmaPitch", "SigmaRoll"),
-        _q("fault_detected", "FaultOdometer", "FaultDoppler", "FaultBds", "FaultImu", kind="bits"),
-        _q("excluded", "ExcludedOdometer", "ExcludedDoppler", "ExcludedBds", "ExcludedImu", kind="bits"),
-        _q("odo_fault_class", "OdoFaultClass", kind="int"),
-        _q("epoch", "EpochCounter", kind="int"),
-    ),
-    "DUT_READY": (_q("time_ns", "ProcessedUpTo", kind="time_us"), _q("alive", "AliveCounter", kind="int")),
-}
 
 _COUNTER_SIGNALS = ("AliveCounter", "EpochCounter")
 _CRC_SIGNALS = ("Crc", "Crc16")
@@ -393,3 +316,30 @@ def codec_for_id(frame_id: int) -> CanCodec | None:
         if m.frame_id == frame_id:
             return codec(m.name)
     return None
+
+
+class CanEncoder:
+    """A sender's encoder: the ICD messages it sends, each with its alive counter running.
+
+    ``encode("ODOMETER", at_ns, pulse_count=..., speed=..., reverse=..., valid=...)`` fills
+    ``alive`` from the message's counter (+1 modulo 16 per frame, across calls) unless it
+    is given. Epoch counters (NAV frames) are data of the epoch and always given.
+    """
+
+    def __init__(self) -> None:
+        self.counters: dict[str, CounterSequence] = {}
+
+    def encode(self, name: str, at_ns, **values) -> CanBatch:
+        """Frames of message ``name`` due at ``at_ns`` (N,) from SI ``values``."""
+        c = codec(name)
+        n = np.atleast_1d(np.asarray(at_ns)).shape[0]
+        if c.counter_name == "alive" and "alive" not in values:
+            values["alive"] = self.counters.setdefault(name, CounterSequence(c.counter_modulus)).take(n)
+        return c.encode(at_ns, values)
+
+    def encode_records(self, name: str, records: np.ndarray, at_ns=None) -> CanBatch:
+        """Frames from records whose fields are named like the message's quantities
+        (``NAV_SOLUTION_DTYPE`` for NAV_SOLUTION); due at ``at_ns`` (default ``records["rx_ns"]``)."""
+        c = codec(name)
+        values = {q.name: records[q.name] for q in c.quantities if q.name in records.dtype.names}
+        return self.encode(name, records["rx_ns"] if at_ns is None else at_ns, **values)

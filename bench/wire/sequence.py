@@ -24,7 +24,16 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["SEQ_OK", "SEQ_DUPLICATE", "SEQ_REPEAT", "SEQ_SKIP", "SEQ_STALE", "SEQ_KINDS", "SequenceChecker"]
+__all__ = [
+    "SEQ_OK",
+    "SEQ_DUPLICATE",
+    "SEQ_REPEAT",
+    "SEQ_SKIP",
+    "SEQ_STALE",
+    "SEQ_KINDS",
+    "SequenceChecker",
+    "CounterSequence",
+]
 
 SEQ_OK, SEQ_DUPLICATE, SEQ_REPEAT, SEQ_SKIP, SEQ_STALE = range(5)
 #: Label names by code.
@@ -82,3 +91,17 @@ class SequenceChecker:
         self.last_counter = int(counters[-1])
         self.last_row = rows[-1].copy()
         return labels, lost
+
+
+class CounterSequence:
+    """The counter a sender puts in each transmission: +1 modulo ``modulus``, across batches."""
+
+    def __init__(self, modulus: int, start: int = 0):
+        self.modulus = modulus
+        self.next = start % modulus
+
+    def take(self, n: int) -> np.ndarray:
+        """The counters of the next ``n`` transmissions, (n,) int64."""
+        out = (self.next + np.arange(n, dtype=np.int64)) % self.modulus
+        self.next = (self.next + n) % self.modulus
+        return out

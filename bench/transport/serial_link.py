@@ -1,0 +1,299 @@
+"""Serial links: pty pairs for local DUTs, real ports and pyserial URLs (``loop://``).
+
+* ``port = "pty"``: the bench creates a pseudo-terminal pair (:class:`PtyPair`), keeps
+  the master and gives the DUT the slave's path (``/dev/pts/N``) to open like a serial
+  port. The slave is put in raw mode at creation (no echo, no CR/LF translation), and the
+  bench keeps it open too, so bytes written before the DUT opens it wait in the line
+  buffer and the master never sees a hang-up when the DUT reopens.
+* a device path (``/dev/ttyUSB0``) or any pyserial URL (``loop://`` for tests,
+  ``socket://host:port``, ``rfc2217://``): opened with pyserial at the configured baud
+  and framing.
+
+:meth:`SerialLink.write_many` writes a whole batch in one call (one system call for a
+pty: about 40 us per call, so never one frame at a time on hot paths). A pty delivers
+bytes at once whatever the baud; real-time pacing is :mod:`bench.transport.pacing`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import os
+import select
+import termios
+import time
+import tty
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import serial
+
+from bench.errors import ConfigError, LinkError
+from bench.frames import SerialBatch, SerialChunk
+from bench.transport.pacing import parse_framing
+
+__all__ = ["SerialConfig", "SerialLink", "PtyPair", "PtyLink", "PySerialLink", "open_serial_link"]
+
+_BAUD_CONSTANTS = {
+    b: getattr(termios, f"B{b}")
+    for b in (9600, 19200, 38400, 57600, 115200, 230400, 460800, 921600)
+    if hasattr(termios, f"B{b}")
+}
+
+
+@dataclass
+class SerialConfig:
+    """One serial link: ``port`` (``"pty"``, a device path or a pyserial URL), baud, framing.
+
+    ICD: ``imu`` 460800 8N1, ``gnss`` 115200 8N1. ``write_timeout`` (s) bounds how long a
+    write may block on a DUT that does not read.
+    """
+
+    port: str = "pty"
+    baudrate: int = 460_800
+    framing: str = "8N1"
+    write_timeout: float = 5.0
+
+    @classmethod
+    def from_mapping(cls, table: Mapping[str, Any], *, file: str | None = None, key: str = "serial") -> SerialConfig:
+        """A config from a TOML table (keys port, baudrate, framing, write_timeout)."""
+        allowed = {"port", "baudrate", "framing", "write_timeout"}
+        for name in table:
+            if name not in allowed:
+                raise ConfigError(
+                    f"unknown key; expected one of {', '.join(sorted(allowed))}", file=file, key=f"{key}.{name}"
+                )
+        cfg = cls(**table)
+        if not isinstance(cfg.baudrate, int) or cfg.baudrate <= 0:
+            raise ConfigError(f"expected a positive integer, found {cfg.baudrate!r}", file=file, key=f"{key}.baudrate")
+        try:
+            parse_framing(cfg.framing)
+        except ValueError as exc:
+            raise ConfigError(str(exc), file=file, key=f"{key}.framing") from None
+        return cfg
+
+
+class SerialLink:
+    """The bench's end of a serial line (a context manager with idempotent close).
+
+    ``clock`` (bench time now, ns) stamps what :meth:`read_chunk` returns.
+    """
+
+    #: The path the DUT opens (the pty slave), or None when the DUT is on the far end of a cable.
+    dut_port: str | None = None
+
+    def __init__(self, config: SerialConfig, *, clock: Callable[[], int] | None = None):
+        self.config = config
+        self.clock = clock
+        self.bytes_written = 0
+        self.bytes_read = 0
+        self._closed = False
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.config.port}, {self.config.baudrate} {self.config.framing})"
+
+    # subclasses implement these three
+    def _write(self, data: bytes, timeout: float) -> None:
+        raise NotImplementedError
+
+    def _read(self, timeout: float | None, max_bytes: int) -> bytes:
+        raise NotImplementedError
+
+    def _close(self) -> None:
+        raise NotImplementedError
+
+    def write(self, data: bytes) -> None:
+        """Write all of ``data`` (LinkError if the far end does not take it within ``write_timeout``)."""
+        if self._closed:
+            raise LinkError(f"{self!r} is closed")
+        if data:
+            self._write(bytes(data), self.config.write_timeout)
+            self.bytes_written += len(data)
+
+    def write_many(self, chunks: SerialBatch | Iterable[SerialChunk]) -> int:
+        """Write every chunk in one call; returns the number of bytes."""
+        data = chunks.tobytes() if isinstance(chunks, SerialBatch) else b"".join(c.data for c in chunks)
+        self.write(data)
+        return len(data)
+
+    def read(self, timeout: float | None = 0.0, max_bytes: int = 1 << 16) -> bytes:
+        """What is available, waiting up to ``timeout`` s for the first byte (b"" if none)."""
+        if self._closed:
+            raise LinkError(f"{self!r} is closed")
+        data = self._read(timeout, max_bytes)
+        self.bytes_read += len(data)
+        return data
+
+    def read_chunk(self, timeout: float | None = 0.0, max_bytes: int = 1 << 16) -> SerialChunk:
+        """:meth:`read` stamped with the bench clock (0 without one)."""
+        data = self.read(timeout, max_bytes)
+        return SerialChunk(int(self.clock()) if self.clock else 0, data)
+
+    def close(self) -> None:
+        """Close the port (safe to call twice)."""
+        if not self._closed:
+            self._closed = True
+            self._close()
+
+    @property
+    def closed(self) -> bool:
+        """Whether :meth:`close` ran."""
+        return self._closed
+
+    def __enter__(self) -> SerialLink:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        if not getattr(self, "_closed", True):
+            self.close()
+
+
+class PtyPair:
+    """A pseudo-terminal pair: the bench keeps ``master_fd``, the DUT opens ``slave_path``.
+
+    The slave is raw (8 bits, no echo, no line discipline) with the configured baud in its
+    termios (ptys ignore it, but a DUT that reads it back finds what it expects).
+    """
+
+    def __init__(self, baudrate: int = 460_800):
+        self.master_fd, self.slave_fd = os.openpty()
+        try:
+            tty.setraw(self.slave_fd)
+            attrs = termios.tcgetattr(self.slave_fd)
+            speed = _BAUD_CONSTANTS.get(baudrate)
+            if speed is not None:
+                attrs[4] = attrs[5] = speed
+            termios.tcsetattr(self.slave_fd, termios.TCSANOW, attrs)
+            os.set_blocking(self.master_fd, False)
+            self.slave_path = os.ttyname(self.slave_fd)
+        except OSError:
+            self.close()
+            raise
+        self._closed = False
+
+    def close(self) -> None:
+        """Close both ends (safe to call twice)."""
+        for name in ("master_fd", "slave_fd"):
+            fd = getattr(self, name, -1)
+            if fd >= 0:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+                setattr(self, name, -1)
+        self._closed = True
+
+    def __enter__(self) -> PtyPair:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class PtyLink(SerialLink):
+    """The bench's end (master) of a :class:`PtyPair`; ``dut_port`` is the slave path."""
+
+    def __init__(self, config: SerialConfig | None = None, *, clock: Callable[[], int] | None = None):
+        super().__init__(config or SerialConfig(), clock=clock)
+        try:
+            self.pair = PtyPair(self.config.baudrate)
+        except OSError as exc:
+            self._closed = True
+            raise LinkError(f"cannot create a pty pair: {exc}") from exc
+        self.dut_port = self.pair.slave_path
+
+    def _write(self, data: bytes, timeout: float) -> None:
+        view = memoryview(data)
+        deadline = time.monotonic() + timeout
+        while view:
+            try:
+                n = os.write(self.pair.master_fd, view)
+                view = view[n:]
+                continue
+            except BlockingIOError:
+                pass
+            except OSError as exc:
+                raise LinkError(f"{self!r}: write failed: {exc}") from exc
+            left = deadline - time.monotonic()
+            if left <= 0 or not select.select([], [self.pair.master_fd], [], left)[1]:
+                raise LinkError(
+                    f"{self!r}: the DUT on {self.dut_port} took no bytes for {timeout:g} s "
+                    f"({len(view)} of {len(data)} bytes left)"
+                )
+
+    def _read(self, timeout: float | None, max_bytes: int) -> bytes:
+        fd = self.pair.master_fd
+        if timeout != 0.0 and not select.select([fd], [], [], timeout)[0]:
+            return b""
+        out = bytearray()
+        while len(out) < max_bytes:
+            try:
+                part = os.read(fd, max_bytes - len(out))
+            except BlockingIOError:
+                break
+            except OSError as exc:
+                if exc.errno == errno.EIO:  # no slave open: nothing to read
+                    break
+                raise LinkError(f"{self!r}: read failed: {exc}") from exc
+            if not part:
+                break
+            out += part
+        return bytes(out)
+
+    def _close(self) -> None:
+        self.pair.close()
+
+
+class PySerialLink(SerialLink):
+    """A real port or a pyserial URL (``loop://``), opened with pyserial."""
+
+    def __init__(self, config: SerialConfig, *, clock: Callable[[], int] | None = None):
+        super().__init__(config, clock=clock)
+        data, parity, stop = parse_framing(config.framing)
+        try:
+            self.port = serial.serial_for_url(
+                config.port,
+                baudrate=config.baudrate,
+                bytesize=data,
+                parity=parity,
+                stopbits=stop,
+                timeout=0,
+                write_timeout=config.write_timeout,
+            )
+        except (serial.SerialException, ValueError, OSError) as exc:
+            self._closed = True
+            raise LinkError(f"cannot open serial port {config.port!r}: {exc}") from exc
+
+    def _write(self, data: bytes, timeout: float) -> None:
+        try:
+            self.port.write(data)
+        except serial.SerialTimeoutException as exc:
+            raise LinkError(f"{self!r}: the far end took no bytes for {timeout:g} s") from exc
+        except serial.SerialException as exc:
+            raise LinkError(f"{self!r}: write failed: {exc}") from exc
+
+    def _read(self, timeout: float | None, max_bytes: int) -> bytes:
+        try:
+            waiting = self.port.in_waiting
+            if not waiting and timeout != 0.0:
+                self.port.timeout = timeout
+                first = self.port.read(1)
+                self.port.timeout = 0
+                if not first:
+                    return b""
+                return first + self.port.read(min(self.port.in_waiting, max_bytes - 1))
+            return self.port.read(min(waiting, max_bytes))
+        except serial.SerialException as exc:
+            raise LinkError(f"{self!r}: read failed: {exc}") from exc
+
+    def _close(self) -> None:
+        self.port.close()
+
+
+def open_serial_link(config: SerialConfig, *, clock: Callable[[], int] | None = None) -> SerialLink:
+    """A pty pair for ``port = "pty"``, else the port or URL through pyserial."""
+    if config.port == "pty":
+        return PtyLink(config, clock=clock)
+    return PySerialLink(config, clock=clock)
