@@ -65,7 +65,8 @@ class ScenarioRef:
 
 @dataclass(frozen=True)
 class SensorSet:
-    """One sensor's parameters: a named parameter set and/or inline values (as written)."""
+    """One sensor's table as a scenario's sensor tables take it (``model``/``grade`` the
+    parameter set, then parameters), as written; ``preset`` the set's name if any."""
 
     sensor: str
     preset: str | None = None

@@ -60,7 +60,9 @@ class Limit:
 
     def text(self, unit: str) -> str:
         def f(x: float | None) -> str:
-            return "?" if x is None else f"{_num(to_unit(x, unit))} {unit}".rstrip(" 1")
+            if x is None:
+                return "?"
+            return _num(float(to_unit(x, unit))) + ("" if unit == "1" else f" {unit}")
 
         if self.comparator == "at_most":
             return f"<= {f(self.high)}"

@@ -156,17 +156,14 @@ def _ratio(c: Criterion, mine: RunValue, base: RunValue) -> RunValue:
         return RunValue(mine.seed, math.nan, Verdict.ERROR, mine.reason or base.reason)
     if math.isnan(mine.value) or math.isnan(base.value):
         return RunValue(mine.seed, math.nan, Verdict.FAIL, mine.reason or base.reason)
-    if base.value == 0.0:
-        value = 0.0 if mine.value == 0.0 else math.inf
-    else:
-        value = mine.value / base.value
+    value = mine.value / base.value if base.value != 0.0 else (0.0 if mine.value == 0.0 else math.inf)
     verdict, _ = judge_value(c.limit, c.band(), value)
     return RunValue(mine.seed, value, verdict, "", {"value": mine.value, "baseline": base.value})
 
 
 def judge_case(case: TestCase, runs: list[RunResult], errors: list[str] | None = None) -> CaseResult:
     """Combine the runs of a case into per-criterion and case verdicts."""
-    out = CaseResult(case.id, case.title, case.file, case.requirements, Verdict.PASS, runs=runs, case=case)
+    out = CaseResult(case.id, case.title, case.file_name, case.requirements, Verdict.PASS, runs=runs, case=case)
     out.errors = list(errors or [])
     variants = case.variants()
     for c in case.criteria:
@@ -182,7 +179,8 @@ def judge_case(case: TestCase, runs: list[RunResult], errors: list[str] | None =
                     if r.seed in base and c.id in r.raw and c.id in base[r.seed].raw:
                         values.append(_ratio(c, r.raw[c.id], base[r.seed].raw[c.id]))
                     else:
-                        values.append(RunValue(r.seed, math.nan, Verdict.ERROR, f"no {c.relative_to} run with seed {r.seed}"))
+                        why = f"no {c.relative_to} run with seed {r.seed}"
+                        values.append(RunValue(r.seed, math.nan, Verdict.ERROR, why))
             out.criteria.append(CriterionResult(c, v, aggregate_runs(c, values), values))
     verdicts = [cr.verdict for cr in out.criteria] + [r.verdict for r in runs]
     if out.errors or not runs:

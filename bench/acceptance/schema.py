@@ -83,6 +83,7 @@ def build_case(
 
     scenario = _scenario(top.table("scenario", required=True), base, check_files)  # type: ignore[arg-type]
     sensors = _sensors(top.table("sensors"), check_files)
+    _load_fault_kinds()
     faults = parse_schedule(top.raw("fault"), file=file, key="fault")
     commands = tuple(_command(t) for t in top.tables("command"))
     dut = _dut(top.table("dut", required=True), base, check_files)  # type: ignore[arg-type]
@@ -149,21 +150,31 @@ def _scenario(t: Table, base: Path | None, check_files: bool) -> ScenarioRef:
     return ref
 
 
-def _check_imu(params: Mapping[str, Any], preset: str | None, file: str, key: str) -> None:
+def _check_imu(params: Mapping[str, Any], file: str, key: str) -> None:
     from bench.sensors.imu.grade import load_grade
 
     t = Table(params, file, key)
-    grade = t.str("grade", preset)
+    grade = t.str("grade")
     t.quantity("rate", "frequency", "Hz", positive=True)
     t.finish()
     if grade is not None:
         try:
             load_grade(grade)
         except ConfigError as exc:
-            raise ConfigError(f"unknown IMU parameter set {grade!r}: {exc.reason}", file=file, key=key) from None
+            raise ConfigError(f"unknown IMU grade {grade!r}: {exc.reason}", file=file, key=f"{key}.grade") from None
+
+
+def _check_sensor(kind: str, params: Mapping[str, Any], file: str, key: str) -> None:
+    from bench.sensors.params import resolve
+    from bench.sensors.suite import SENSOR_KINDS
+
+    resolve(kind, params, SENSOR_KINDS[kind], file=file, where=key, allow=("enabled", "name"))
 
 
 def _sensors(t: Table | None, check_files: bool) -> dict[str, SensorSet]:
+    """``[sensors]``: per sensor a parameter-set name or a table as a scenario's sensor
+    tables take it (``imu``: ``grade``, ``rate``; others: ``model``, parameters,
+    ``name``, ``enabled``; see docs/sensors.md)."""
     out: dict[str, SensorSet] = {}
     if t is None:
         return out
@@ -171,25 +182,35 @@ def _sensors(t: Table | None, check_files: bool) -> dict[str, SensorSet]:
         if name not in SENSORS:
             raise t.error(name, f"unknown sensor {name!r}; expected one of: {', '.join(SENSORS)}")
         v = t.raw(name)
+        named = "grade" if name == "imu" else "model"
         if isinstance(v, str):
-            preset, params = v, {}
+            params: dict[str, Any] = {named: v}
         elif isinstance(v, Mapping):
             params = dict(v)
-            preset = params.get("preset")
-            if preset is not None and not isinstance(preset, str):
-                raise t.error(f"{name}.preset", f"expected a parameter set name, found {type_name(preset)}")
-            params.pop("preset", None)
         else:
             raise t.error(name, f"expected a parameter set name or a table, found {v!r} ({type_name(v)})")
+        key = t.path(name)
         if check_files:
-            key = t.path(name)
             if name == "imu":
-                _check_imu(params, preset, t.file or "", key)
+                _check_imu(params, t.file or "", key)
             elif name in _SENSOR_VALIDATORS:
                 _SENSOR_VALIDATORS[name](params, t.file or "", key)
-        out[name] = SensorSet(name, preset, params)
+            else:
+                _check_sensor(name, params, t.file or "", key)
+        preset = params.get(named)
+        out[name] = SensorSet(name, preset if isinstance(preset, str) else None, params)
     t.finish()
     return out
+
+
+def _load_fault_kinds() -> None:
+    """Import the modules that register fault kinds (sensor level; wire level when present)."""
+    import importlib
+    import importlib.util
+
+    for mod in ("bench.faults.sensor", "bench.faults.wire"):
+        if importlib.util.find_spec(mod) is not None:
+            importlib.import_module(mod)
 
 
 def _command(t: Table) -> Command:

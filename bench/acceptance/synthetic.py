@@ -12,6 +12,7 @@ was put in.
 from __future__ import annotations
 
 import datetime as _dt
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +30,7 @@ from bench.acceptance.synthetic_spec import SyntheticDut
 from bench.errors import ConfigError
 from bench.faults.schedule import FAULT_JSON_SCHEMA, FAULT_TOPIC
 from bench.record.mcap_io import RecordingWriter
-from bench.scenario.loader import load_scenario
+from bench.scenario.loader import Scenario, load_scenario
 from bench.scenario.records import TRUTH_TOPIC, truth_records
 from bench.scenario.trajectory import Trajectory, truth_at
 from bench.scoring.data import BAD_FRAMES, COMMANDS, SEGMENTS
@@ -49,6 +50,14 @@ def epoch_ns(start_utc: str | None) -> int:
     return round(when.timestamp()) * 1_000_000_000 + when.microsecond * 1000
 
 
+@lru_cache(maxsize=4)
+def _trajectory(path: str, mtime_ns: int) -> tuple[Scenario, Trajectory]:
+    """Scenario and trajectory of a file (cached: the runs of a case share them)."""
+    del mtime_ns  # part of the cache key only
+    scenario = load_scenario(path)
+    return scenario, scenario.trajectory()
+
+
 def case_trajectory(case: TestCase) -> tuple[Trajectory, int, int]:
     """``(trajectory, duration ns, epoch ns)`` of a motion-script case, checking that a
     shortened duration is declared by ``[case] shortened``."""
@@ -60,8 +69,7 @@ def case_trajectory(case: TestCase) -> tuple[Trajectory, int, int]:
             file=case.file,
             key="scenario.fmu",
         )
-    scenario = load_scenario(path)
-    traj = scenario.trajectory()
+    scenario, traj = _trajectory(str(Path(path).resolve()), Path(path).stat().st_mtime_ns)
     duration_ns = traj.duration_ns
     if case.scenario.duration_s is not None:
         want = round(case.scenario.duration_s * 1e9)
@@ -103,9 +111,12 @@ class SyntheticRunner:
             rec.metadata(
                 "run_start",
                 run_start_metadata(
-                    case, seed, self.name, duration_s=f"{total_s:.9g}", epoch_utc_ns=str(epoch), scenario=str(
-                        case.scenario.script
-                    )
+                    case,
+                    seed,
+                    self.name,
+                    duration_s=f"{total_s:.9g}",
+                    epoch_utc_ns=str(epoch),
+                    scenario=str(case.scenario.script),
                 ),
             )
             for name, data, media in case_attachments(case):

@@ -11,7 +11,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-__all__ = ["allan_plot"]
+__all__ = ["allan_plot", "error_curves"]
 
 
 def allan_plot(report: Any, path: str | Path) -> None:
@@ -32,4 +32,39 @@ def allan_plot(report: Any, path: str | Path) -> None:
     fig.tight_layout()
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def error_curves(
+    t_s: Any,
+    horizontal: Any,
+    vertical: Any,
+    heading_arcmin: Any,
+    path: str | Path,
+    *,
+    title: str = "",
+    spans: list[tuple[float, float, str]] = (),  # type: ignore[assignment]
+    marks: list[tuple[float, str]] = (),  # type: ignore[assignment]
+) -> None:
+    """DUT errors against time: horizontal and vertical position (m), heading (arcmin);
+    ``spans`` (start s, end s, label) are shaded (fault windows, outages), ``marks``
+    (time s, label) drawn as vertical lines (frame switches)."""
+    fig, (ap, ah) = plt.subplots(2, 1, figsize=(11, 6), sharex=True)
+    ap.plot(t_s, horizontal, lw=0.8, label="horizontal")
+    ap.plot(t_s, vertical, lw=0.8, label="vertical")
+    ah.plot(t_s, heading_arcmin, lw=0.8, color="tab:green", label="heading")
+    ap.set_ylabel("position error, m")
+    ah.set_ylabel("heading error, arcmin")
+    ah.set_xlabel("bench time, s")
+    for ax in (ap, ah):
+        for a, b, _label in spans:
+            ax.axvspan(a, b, color="tab:red", alpha=0.12, lw=0)
+        for t, _label in marks:
+            ax.axvline(t, color="k", ls="--", lw=0.8)
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="upper right")
+    fig.suptitle(title)
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=100)
     plt.close(fig)

@@ -67,7 +67,7 @@ def text_table(cases: Sequence[CaseResult], width: int = 40) -> str:
         lines.append("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip())
         if k == 0:
             lines.append("  ".join("-" * w for w in widths))
-    return "\n".join(lines + [""] + case_lines(cases))
+    return "\n".join([*lines, "", *case_lines(cases)])
 
 
 def case_lines(cases: Sequence[CaseResult]) -> list[str]:
@@ -78,8 +78,10 @@ def case_lines(cases: Sequence[CaseResult]) -> list[str]:
         for r in cr.runs:
             for issue in r.bench_issues + r.dut_issues:
                 problems.append(f"seed {r.seed}{'/' + r.variant if r.variant else ''}: {issue}")
-        dut = "" if cr.case is None else f" [DUT: {cr.case.dut.kind}{' ' + cr.case.dut.name if cr.case.dut.name else ''}]"
-        line = f"{str(cr.verdict):<8} {cr.case_id}: {cr.title}{dut}"
+        dut = ""
+        if cr.case is not None:
+            dut = f" [DUT: {cr.case.dut.kind}{' ' + cr.case.dut.name if cr.case.dut.name else ''}]"
+        line = f"{cr.verdict!s:<8} {cr.case_id}: {cr.title}{dut}"
         if problems:
             line += f" -- {problems[0]}" + (f" (+{len(problems) - 1} more)" if len(problems) > 1 else "")
         out.append(line)

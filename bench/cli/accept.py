@@ -1,0 +1,119 @@
+"""``bench accept [PATHS]``: run an acceptance suite and judge it.
+
+Every test case found (``test_cases/`` by default) is run for each variant and seed
+through its runner, every recording is judged as ``bench score`` would judge it, and
+the results go under the output folder (``reports/`` by default): recordings,
+``results.json``, ``junit.xml``, ``summary.txt``/``summary.md`` and error plots.
+
+Exit codes: 0 every case PASS or MARGINAL; 1 a case FAILed; 2 a case file is malformed
+(or bad usage); 3 a case could not be judged (ERROR).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import sys
+import time
+from contextlib import ExitStack
+from pathlib import Path
+
+from bench.cli.main import EXIT_ERROR, EXIT_FAIL, EXIT_OK, EXIT_USAGE
+from bench.cli.progress import progress_bar
+
+__all__ = ["register", "exit_code"]
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``accept`` subcommand."""
+    p = sub.add_parser(
+        "accept",
+        help="run and judge acceptance test cases (the reference suite by default)",
+        description="Run every test case under PATHS (default test_cases/) for each variant and seed, judge "
+        "the recordings and write results.json, junit.xml, summary tables and plots to the output folder.",
+    )
+    p.add_argument("paths", nargs="*", help="case files or folders (default: test_cases/)")
+    p.add_argument("-o", "--out", help="output folder (default: reports/)")
+    p.add_argument("--seed", type=int, action="append", help="run only this seed (repeatable)")
+    p.add_argument("--runs", type=int, help="Monte Carlo runs per case and variant (seeds from the case's first)")
+    p.add_argument("--clock", choices=("lockstep", "realtime"), help="override the cases' clock mode")
+    p.add_argument("--no-plots", action="store_true", help="do not draw error plots")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    p.set_defaults(handler=_run)
+
+
+class _Reporter:
+    """Progress on stderr: a line per case, a bar per run, the verdicts."""
+
+    def __init__(self, total: int, quiet: bool):
+        self.total = total
+        self.index = 0
+        self.quiet = quiet
+        self._stack = ExitStack()
+
+    def case_started(self, case, runs: int) -> None:
+        self.index += 1
+        if not self.quiet:
+            print(f"[{self.index}/{self.total}] {case.id}: {case.title} -- {runs} run(s)", file=sys.stderr)
+
+    def run_started(self, case, seed: int):
+        if self.quiet:
+            return None
+        label = f"  {case.label} seed {seed}"
+        state: dict = {}
+
+        def progress(done: float, total: float) -> None:
+            if "bar" not in state:
+                state["bar"] = self._stack.enter_context(progress_bar(label, total))
+            state["bar"](done, total)
+
+        return progress
+
+    def run_finished(self, case, result) -> None:
+        self._stack.close()
+        if not self.quiet:
+            print(f"  {case.label} seed {result.seed}: {result.verdict}", file=sys.stderr)
+
+    def case_finished(self, result) -> None:
+        if not self.quiet:
+            print(f"  => {result.case_id}: {result.verdict} ({result.elapsed_s:.1f} s)", file=sys.stderr)
+
+
+def exit_code(cases) -> int:
+    """0 all passed, 1 a FAIL, 2 a malformed case, 3 an ERROR (a malformed case first)."""
+    from bench.acceptance.verdict import Verdict
+
+    if any(any(e.startswith("configuration error") for e in c.errors) for c in cases):
+        return EXIT_USAGE
+    if not cases or any(c.verdict is Verdict.ERROR for c in cases):
+        return EXIT_ERROR
+    if any(c.verdict is Verdict.FAIL for c in cases):
+        return EXIT_FAIL
+    return EXIT_OK
+
+
+def _run(args: argparse.Namespace) -> int:
+    from bench.acceptance.suite import SuiteOptions, collect_cases, run_suite
+    from bench.paths import reports_dir, test_cases_dir
+    from bench.report.outputs import write_reports
+    from bench.report.table import text_table
+
+    paths = args.paths or [str(test_cases_dir())]
+    out = Path(args.out) if args.out else reports_dir()
+    files = collect_cases(paths)
+    if not files:
+        print(f"bench accept: no test case files in {', '.join(paths)}", file=sys.stderr)
+        return EXIT_USAGE
+    options = SuiteOptions(out, tuple(args.seed) if args.seed else None, args.runs, args.clock)
+    started = time.perf_counter()
+    when = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+    results = run_suite(files, options, _Reporter(len(files), args.quiet))
+    elapsed = time.perf_counter() - started
+    run_info = {"started_utc": when, "elapsed_s": round(elapsed, 3), "paths": [str(p) for p in files]}
+    written = write_reports(results, out, run_info, plots=not args.no_plots)
+    print(text_table(results))
+    print(
+        f"\n{len(results)} case(s) in {elapsed:.1f} s; results: {written['json']}, {written['junit']}, "
+        f"{written['summary']}"
+    )
+    return exit_code(results)
