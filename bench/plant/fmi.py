@@ -1,0 +1,347 @@
+"""The bench's only use of fmpy: model descriptions, validation, and one running FMU.
+
+:func:`read_description` reads ``modelDescription.xml`` (no native code is loaded);
+:func:`validate` runs fmpy's schema, naming and model-structure checks;
+:class:`FmuInstance` loads the binary of a co-simulation FMU (FMI 2.0 or 3.0), holds one
+instance for a whole run and steps it at a fixed communication step. Its hot loop calls
+the FMU's ``DoStep`` and bulk ``GetReal``/``GetFloat64`` through the ctypes functions
+fmpy has bound, with the output pointer aimed straight at rows of a numpy buffer, so a
+step costs two foreign calls and no Python object per variable.
+
+Callers check the FMU's SHA-256 against a manifest (:mod:`bench.plant.manifest`) before
+they open an instance: opening one runs the FMU's native code.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.errors import PlantError
+
+__all__ = ["Variable", "FmuDescription", "read_description", "validate", "simulate", "FmuInstance"]
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One model variable as the model description declares it."""
+
+    name: str
+    vr: int
+    type: str  # Float64, Int32, Boolean, String, ... (FMI 2.0 Real -> Float64, Integer -> Int32)
+    causality: str
+    variability: str
+    unit: str | None
+    start: Any
+    description: str
+    min: Any = None
+    max: Any = None
+
+
+@dataclass
+class FmuDescription:
+    """What an FMU declares about itself."""
+
+    path: Path
+    fmi_version: str
+    model_name: str
+    identifier: str
+    description: str
+    generation_tool: str
+    co_simulation: bool
+    variables: dict[str, Variable] = field(default_factory=dict)
+    default_experiment: dict[str, float] = field(default_factory=dict)
+
+    def of_causality(self, causality: str) -> list[Variable]:
+        """Variables with the given causality, in value-reference order."""
+        return sorted((v for v in self.variables.values() if v.causality == causality), key=lambda v: v.vr)
+
+
+_TYPES = {"Real": "Float64", "Integer": "Int32", "Enumeration": "Int32"}
+
+
+def read_description(path: str | Path) -> FmuDescription:
+    """Parse an FMU's model description; :class:`PlantError` if it cannot be read."""
+    from fmpy import read_model_description
+
+    path = Path(path)
+    if not path.exists():
+        raise PlantError(f"FMU not found: {path}")
+    try:
+        md = read_model_description(str(path), validate=False)
+    except Exception as exc:  # fmpy raises plain exceptions for unreadable archives
+        raise PlantError(f"{path}: cannot read modelDescription.xml: {exc}") from None
+    cs = md.coSimulation
+    variables = {}
+    for v in md.modelVariables:
+        variables[v.name] = Variable(
+            name=v.name,
+            vr=int(v.valueReference),
+            type=_TYPES.get(v.type, v.type),
+            causality=v.causality or "local",
+            variability=v.variability or "continuous",
+            unit=(v.declaredType.unit if v.unit is None and v.declaredType is not None else v.unit),
+            start=v.start,
+            description=v.description or "",
+            min=v.min,
+            max=v.max,
+        )
+    de = {}
+    if md.defaultExperiment is not None:
+        for key in ("startTime", "stopTime", "stepSize", "tolerance"):
+            value = getattr(md.defaultExperiment, key, None)
+            if value is not None:
+                de[key] = float(value)
+    return FmuDescription(
+        path=path,
+        fmi_version=md.fmiVersion,
+        model_name=md.modelName,
+        identifier=cs.modelIdentifier if cs is not None else "",
+        description=md.description or "",
+        generation_tool=md.generationTool or "",
+        co_simulation=cs is not None,
+        variables=variables,
+        default_experiment=de,
+    )
+
+
+def validate(path: str | Path) -> list[str]:
+    """fmpy's validation of the model description: a list of problems (empty when valid)."""
+    from fmpy.validation import validate_fmu
+
+    return list(validate_fmu(str(path)))
+
+
+def simulate(path: str | Path, stop_time: float, step: float, outputs: list[str] | None = None) -> np.ndarray:
+    """A run with ``fmpy.simulate_fmu`` (loads native code: check the hash first)."""
+    from fmpy import simulate_fmu
+
+    try:
+        return simulate_fmu(
+            str(path), stop_time=stop_time, output_interval=step, step_size=step, output=outputs, validate=True
+        )
+    except Exception as exc:
+        raise PlantError(f"{path}: simulation with fmpy failed: {exc}") from None
+
+
+class FmuInstance:
+    """One instance of a co-simulation FMU, stepped at a fixed communication step.
+
+    Parameters
+    ----------
+    desc:
+        The FMU's description (from :func:`read_description`).
+    instance_name:
+        Name passed to the FMU (shows in its log messages).
+
+    Use as a context manager; :meth:`close` terminates and frees the instance and removes
+    the extracted files, and may be called more than once.
+    """
+
+    def __init__(self, desc: FmuDescription, instance_name: str = "bench"):
+        if not desc.co_simulation:
+            raise PlantError(f"{desc.path}: not a co-simulation FMU (model exchange is not supported)")
+        if desc.fmi_version not in ("2.0", "3.0"):
+            raise PlantError(f"{desc.path}: FMI {desc.fmi_version} is not supported (2.0 or 3.0)")
+        self.desc = desc
+        self.log: list[str] = []
+        self._name = instance_name
+        self._dir: str | None = None
+        self._fmu: Any = None
+        self._state = "closed"
+        self._rows: list[Any] = []
+        self._buffer: np.ndarray | None = None
+
+    # -- life cycle --------------------------------------------------------------------
+    def open(self, start_time: float = 0.0) -> FmuInstance:
+        """Extract, load and instantiate; the instance is then in initialization mode."""
+        from fmpy import extract
+
+        self._dir = extract(str(self.desc.path))
+        v3 = self.desc.fmi_version == "3.0"
+        md_guid = self._guid()
+        try:
+            if v3:
+                from fmpy.fmi3 import FMU3Slave, fmi3LogMessageCallback
+
+                self._fmu = FMU3Slave(
+                    guid=md_guid, unzipDirectory=self._dir, modelIdentifier=self.desc.identifier,
+                    instanceName=self._name,
+                )
+
+                def log3(env, status, category, message):  # noqa: ARG001
+                    self.log.append(f"[{_STATUS[status]}] {(message or b'').decode(errors='replace')}")
+
+                self._cb = fmi3LogMessageCallback(log3)
+                self._fmu.instantiate(loggingOn=False, logMessage=log3)
+                self._fmu.enterInitializationMode(startTime=start_time)
+            else:
+                from fmpy.fmi2 import (
+                    FMU2Slave,
+                    fmi2CallbackAllocateMemoryTYPE,
+                    fmi2CallbackFreeMemoryTYPE,
+                    fmi2CallbackFunctions,
+                    fmi2CallbackLoggerTYPE,
+                )
+
+                from fmpy import calloc, free
+
+                self._fmu = FMU2Slave(
+                    guid=md_guid, unzipDirectory=self._dir, modelIdentifier=self.desc.identifier,
+                    instanceName=self._name,
+                )
+
+                def log2(env, name, status, category, message):  # noqa: ARG001
+                    self.log.append(f"[{_STATUS[status]}] {(message or b'').decode(errors='replace')}")
+
+                cb = fmi2CallbackFunctions()
+                cb.logger = fmi2CallbackLoggerTYPE(log2)
+                cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+                cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+                self._cb = cb
+                self._fmu.instantiate(callbacks=cb, loggingOn=False)
+                self._fmu.setupExperiment(startTime=start_time)
+                self._fmu.enterInitializationMode()
+        except PlantError:
+            self.close()
+            raise
+        except Exception as exc:
+            msg = self._fail_message(f"cannot instantiate: {exc}")
+            self.close()
+            raise PlantError(msg) from None
+        self._state = "init"
+        return self
+
+    def _guid(self) -> str:
+        from fmpy import read_model_description
+
+        return read_model_description(str(self.desc.path), validate=False).guid
+
+    def exit_initialization(self) -> None:
+        """Leave initialization mode (parameters are fixed from here on)."""
+        try:
+            self._fmu.exitInitializationMode()
+        except Exception as exc:
+            raise PlantError(self._fail_message(f"initialization failed: {exc}")) from None
+        self._state = "step"
+
+    def close(self) -> None:
+        """Terminate and free the instance, unload the library, remove extracted files."""
+        fmu, self._fmu = self._fmu, None
+        if fmu is not None:
+            try:
+                if self._state == "step":
+                    fmu.terminate()
+            except Exception:  # a failed FMU may refuse to terminate; free it all the same
+                pass
+            try:
+                fmu.freeInstance()
+            except Exception:
+                pass
+        self._state = "closed"
+        self._rows = []
+        self._buffer = None
+        if self._dir is not None:
+            shutil.rmtree(self._dir, ignore_errors=True)
+            self._dir = None
+
+    def __enter__(self) -> FmuInstance:
+        return self if self._state != "closed" else self.open()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _fail_message(self, what: str) -> str:
+        tail = "; ".join(self.log[-5:])
+        return f"{self.desc.path.name}: {what}" + (f" (FMU log: {tail})" if tail else "")
+
+    # -- variables ---------------------------------------------------------------------
+    def set(self, values: dict[str, float | int]) -> None:
+        """Set variables by name (Float64/Real and Int32/Integer)."""
+        v3 = self.desc.fmi_version == "3.0"
+        for name, value in values.items():
+            var = self.desc.variables.get(name)
+            if var is None:
+                raise PlantError(f"{self.desc.path.name}: no variable {name!r}")
+            try:
+                if var.type == "Float64":
+                    (self._fmu.setFloat64 if v3 else self._fmu.setReal)([var.vr], [float(value)])
+                elif var.type == "Int32":
+                    (self._fmu.setInt32 if v3 else self._fmu.setInteger)([var.vr], [int(round(value))])
+                else:
+                    raise PlantError(f"{self.desc.path.name}: variable {name!r} is {var.type}; expected Float64 or Int32")
+            except PlantError:
+                raise
+            except Exception as exc:
+                raise PlantError(self._fail_message(f"setting {name} = {value!r} failed: {exc}")) from None
+
+    def get(self, names: list[str]) -> list[float]:
+        """Current values of Float64/Real variables by name."""
+        vrs = [self._real(n).vr for n in names]
+        try:
+            return list(self._fmu.getFloat64(vrs) if self.desc.fmi_version == "3.0" else self._fmu.getReal(vrs))
+        except Exception as exc:
+            raise PlantError(self._fail_message(f"reading {names} failed: {exc}")) from None
+
+    def _real(self, name: str) -> Variable:
+        var = self.desc.variables.get(name)
+        if var is None:
+            raise PlantError(f"{self.desc.path.name}: no variable {name!r}")
+        if var.type != "Float64":
+            raise PlantError(f"{self.desc.path.name}: output {name!r} is {var.type}; expected Float64/Real")
+        return var
+
+    # -- stepping ----------------------------------------------------------------------
+    def bind_outputs(self, names: list[str], buffer: np.ndarray) -> None:
+        """Read ``names`` after every step into the rows of ``buffer`` (rows, len(names))."""
+        if buffer.dtype != np.float64 or not buffer.flags.c_contiguous or buffer.shape[1] != len(names):
+            raise ValueError("buffer must be C-contiguous float64 of shape (rows, len(names))")
+        vrs = [self._real(n).vr for n in names]
+        self._vr = (ctypes.c_uint * len(vrs))(*vrs)
+        self._nvr = len(vrs)
+        row_t = ctypes.c_double * len(vrs)
+        base, stride = buffer.ctypes.data, buffer.strides[0]
+        self._rows = [row_t.from_address(base + i * stride) for i in range(buffer.shape[0])]
+        self._buffer = buffer  # keeps the memory alive while the row views exist
+
+    def advance(self, step0: int, n: int, h: float, row0: int = 0) -> None:
+        """Run ``n`` steps of ``h`` seconds from communication point ``step0 * h``,
+        writing the bound outputs after step k into row ``row0 + k`` of the buffer.
+
+        Raises :class:`PlantError` with the FMU's own messages when a step fails.
+        """
+        if self._state != "step":
+            raise PlantError(f"{self.desc.path.name}: not in step mode (state {self._state})")
+        fmu, comp, vr, nvr, rows = self._fmu, self._fmu.component, self._vr, self._nvr, self._rows
+        if self.desc.fmi_version == "3.0":
+            do_step, get = fmu.dll.fmi3DoStep, fmu.dll.fmi3GetFloat64
+            ev, term, early, last = ctypes.c_bool(), ctypes.c_bool(), ctypes.c_bool(), ctypes.c_double()
+            pev, pterm, pearly, plast = ctypes.byref(ev), ctypes.byref(term), ctypes.byref(early), ctypes.byref(last)
+            for k in range(n):
+                status = do_step(comp, (step0 + k) * h, h, True, pev, pterm, pearly, plast)
+                if status > 1 or term.value or early.value:
+                    self._step_failed(status, (step0 + k) * h, bool(term.value), bool(early.value))
+                if get(comp, vr, nvr, rows[row0 + k], nvr) > 1:
+                    raise PlantError(self._fail_message(f"fmi3GetFloat64 failed at t = {(step0 + k + 1) * h:.6f} s"))
+        else:
+            do_step, get = fmu.dll.fmi2DoStep, fmu.dll.fmi2GetReal
+            for k in range(n):
+                status = do_step(comp, (step0 + k) * h, h, 1)
+                if status > 1:
+                    self._step_failed(status, (step0 + k) * h, False, False)
+                if get(comp, vr, nvr, rows[row0 + k]) > 1:
+                    raise PlantError(self._fail_message(f"fmi2GetReal failed at t = {(step0 + k + 1) * h:.6f} s"))
+
+    def _step_failed(self, status: int, t: float, terminate: bool, early: bool) -> None:
+        self._state = "failed"
+        name = _STATUS.get(status, str(status))
+        why = "asked to terminate" if terminate else ("returned early" if early else f"returned {name}")
+        raise PlantError(self._fail_message(f"doStep at t = {t:.6f} s {why}"))
+
+
+_STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}

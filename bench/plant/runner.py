@@ -1,0 +1,164 @@
+"""The FMU plant runner: one instance, a fixed communication step, truth out.
+
+:func:`run_plant` checks the FMU's SHA-256 against its manifest (before any of its native
+code is loaded), reads its description, checks the mapping against its variables, sets
+the vehicle parameters and the surface, and steps the one instance over the whole drive.
+Driver commands are applied at their ticks; the mapped outputs of every step are
+streamed through :class:`~bench.plant.integrate.BodyIntegrator` into heading and WGS-84
+position. A failing step ends the run with :class:`~bench.errors.PlantError` that names
+the time and carries the FMU's own messages.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from bench.errors import ConfigError, PlantError
+from bench.plant.checks import mapping_problems
+from bench.plant.driver import DriverScript
+from bench.plant.fmi import FmuDescription, FmuInstance, read_description
+from bench.plant.integrate import BodyIntegrator
+from bench.plant.manifest import verify_fmu
+from bench.plant.mapping import PlantMapping
+
+__all__ = ["PlantSetup", "PlantRun", "run_plant"]
+
+
+@dataclass
+class PlantSetup:
+    """Everything a plant run needs.
+
+    Attributes
+    ----------
+    fmu: the .fmu file.
+    mapping: its variables to bench quantities.
+    script: the driver commands; its duration is the run's.
+    lat0, lon0, h0, heading0: start position (rad, rad, m) and heading (rad).
+    step_s: communication step, s.
+    decimate: keep every n-th step for the trajectory's splines.
+    parameters: FMU parameters by name (FMU units).
+    surfaces: surface name -> tunable FMU parameters for that ground.
+    heading_parameter: FMU parameter that takes ``heading0`` (None: the FMU starts at its own).
+    sha256, manifest: what the FMU is checked against (see :func:`verify_fmu`).
+    """
+
+    fmu: Path
+    mapping: PlantMapping
+    script: DriverScript
+    lat0: float
+    lon0: float
+    h0: float
+    heading0: float = 0.0
+    step_s: float = 1e-3
+    decimate: int = 10
+    parameters: dict[str, float] = field(default_factory=dict)
+    surfaces: dict[str, dict[str, float]] = field(default_factory=dict)
+    heading_parameter: str | None = None
+    sha256: str | None = None
+    manifest: Path | None = None
+
+
+@dataclass
+class PlantRun:
+    """What a run produced: the kept samples and how it went."""
+
+    samples: dict[str, np.ndarray]
+    steps: int
+    elapsed_s: float
+    step_s: float
+    sha256: str
+    description: FmuDescription
+    log: list[str]
+
+
+def _step_index(t: float, h: float, what: str) -> int:
+    k = round(t / h)
+    if abs(k * h - t) > 1e-9 * max(1.0, t):
+        raise ConfigError(f"{what} at {t:.6f} s is not on the {h * 1e3:g} ms communication grid")
+    return k
+
+
+def _events(setup: PlantSetup, names: list[str]) -> dict[int, dict[str, float]]:
+    """Step index -> FMU variable values to set before that step."""
+    m, h = setup.mapping, setup.step_s
+    events: dict[int, dict[str, float]] = {}
+    ticks, vals = setup.script.ticks(names)
+    for t, row in zip(ticks, vals, strict=True):
+        k = _step_index(float(t), h, "a command tick")
+        events.setdefault(k, {}).update({m.inputs[c].var: m.inputs[c].to_fmu(float(v)) for c, v in zip(names, row, strict=True)})
+    for t, surface in setup.script.surface_changes():
+        if surface not in setup.surfaces:
+            if setup.surfaces:
+                raise ConfigError(f"the vehicle has no parameters for surface {surface!r}; "
+                                  f"known: {', '.join(sorted(setup.surfaces))}")
+            continue
+        events.setdefault(_step_index(t, h, "a surface change"), {}).update(setup.surfaces[surface])
+    return events
+
+
+def run_plant(
+    setup: PlantSetup, *, chunk: int = 8192, progress: Callable[[int, int], None] | None = None
+) -> PlantRun:
+    """Run the FMU over the script's duration; see the module docstring."""
+    digest = verify_fmu(setup.fmu, manifest=setup.manifest, sha256=setup.sha256)
+    desc = read_description(setup.fmu)
+    problems = mapping_problems(desc, setup.mapping)
+    if problems:
+        raise ConfigError("mapping does not fit the FMU: " + "; ".join(problems), file=setup.mapping.source)
+    used = setup.script.channels_used()
+    missing = [c for c in used if c not in setup.mapping.inputs]
+    if missing:
+        raise ConfigError(f"the driver script sets {', '.join(missing)} but the mapping has no input for them",
+                          file=setup.mapping.source, key="inputs")
+    names = [c for c in setup.mapping.inputs]
+    h = setup.step_s
+    n_steps = round(setup.script.duration_s / h)
+    events = _events(setup, names)
+    out_names = setup.mapping.output_vars()
+    integ = BodyIntegrator(setup.lat0, setup.lon0, setup.h0, setup.heading0, h, setup.decimate)
+    buffer = np.empty((chunk, len(out_names)))
+    started = time.perf_counter()
+    inst = FmuInstance(desc)
+    with inst.open():
+        params = dict(setup.parameters)
+        if setup.heading_parameter:
+            params[setup.heading_parameter] = setup.heading0
+        inst.set(params)
+        inst.set(events.pop(0, {}))
+        inst.exit_initialization()
+        first = np.asarray([inst.get(out_names)])
+        integ.push(np.zeros(1), setup.mapping.convert(first))
+        inst.bind_outputs(out_names, buffer)
+        pending = sorted(events)
+        ev_i = 0
+        step = 0
+        while step < n_steps:
+            rows = 0
+            while rows < chunk and step < n_steps:
+                while ev_i < len(pending) and pending[ev_i] <= step:
+                    if pending[ev_i] == step:
+                        inst.set(events[pending[ev_i]])
+                    ev_i += 1
+                nxt = pending[ev_i] if ev_i < len(pending) else n_steps
+                n = min(chunk - rows, n_steps - step, max(nxt - step, 1))
+                inst.advance(step, n, h, rows)
+                rows += n
+                step += n
+            t = (np.arange(step - rows, step) + 1) * h
+            integ.push(t, setup.mapping.convert(buffer[:rows]))
+            if progress is not None:
+                progress(step, n_steps)
+        log = list(inst.log)
+    samples = integ.kept.arrays()
+    bad = [k for k, v in samples.items() if not np.all(np.isfinite(v))]
+    if bad:
+        raise PlantError(f"{setup.fmu.name}: non-finite {', '.join(bad)} in the FMU's mapped outputs")
+    return PlantRun(
+        samples=samples, steps=n_steps, elapsed_s=time.perf_counter() - started, step_s=h,
+        sha256=digest, description=desc, log=log,
+    )
