@@ -34,6 +34,9 @@ _TOP_KEYS = {
     "driver",
     # sensor-level fault windows of the scenario (bench.faults.schedule)
     "fault",
+    # motion from a vehicle FMU driven by a command timeline (bench.plant.scenario)
+    "plant",
+    "command",
 }
 _SCENARIO_KEYS = {"id", "title", "reference", "description", "start_utc", "assumed", "notes"}
 
@@ -74,6 +77,10 @@ class Scenario:
         """Build the truth trajectory (may take a moment for long drives)."""
         if "track" in self.doc:
             return _track_trajectory(self)
+        if "plant" in self.doc:
+            from bench.plant.scenario import plant_trajectory  # the plant layer, only when asked for
+
+            return plant_trajectory(self.doc, file=str(self.path), base=self.path.parent)
         return build_profile(self.doc, file=str(self.path), internal_rate_hz=self.internal_rate_hz)
 
     def text(self) -> str:
@@ -117,8 +124,12 @@ def load_scenario(ref: str | Path) -> Scenario:
                 file=str(path),
                 key=f"scenario.{k}",
             )
-    if ("track" in doc) == ("segment" in doc):
-        raise ConfigError("a scenario has either [[segment]] tables or a [track] table", file=str(path), key="segment")
+    if sum(k in doc for k in ("track", "segment", "plant")) != 1:
+        raise ConfigError(
+            "a scenario has exactly one of [[segment]] tables, a [track] table or a [plant] table",
+            file=str(path),
+            key="segment",
+        )
     return Scenario(id=str(meta["id"]), title=str(meta.get("title", "")), path=path, doc=doc, meta=meta)
 
 
