@@ -19,7 +19,7 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 
 from bench.errors import ConfigError
-from bench.faults.schedule import FaultSchedule, FaultWindow, ParamSpec, register_kind
+from bench.faults.schedule import FaultSchedule, FaultWindow, ParamSpec, register_kind, registered_kinds
 
 __all__ = [
     "ODOMETER_KINDS",
@@ -37,6 +37,7 @@ __all__ = [
     "bds_apply",
     "imu_apply",
     "OUTAGE_STYLES",
+    "kinds_markdown",
 ]
 
 ODOMETER_KINDS = ("idling", "sliding", "sideslip", "no_output", "bump")
@@ -382,3 +383,23 @@ def imu_apply(
             if p["flag"]:
                 status[m] &= np.uint8(~(1 << col) & 0xFF)
                 status[m] |= 0x40
+
+
+def kinds_markdown() -> str:
+    """The sensor-level kinds as a Markdown table (for ``docs/sensors.md``)."""
+    rows = ["| target | kind | parameter | unit | default | meaning |", "|---|---|---|---|---|---|"]
+    for k in registered_kinds():
+        if k.layer != "sensor":
+            continue
+        target = ", ".join(t.rstrip("*") for t in k.targets)
+        rows.append(f"| {target} | `{k.kind}` | | | | {k.description} |")
+        for name, p in k.params.items():
+            unit = p.unit if p.dimension not in ("text", "boolean", "integer") else p.dimension
+            if isinstance(p.default, bool):
+                default = "true" if p.default else "false"
+            elif isinstance(p.default, str):
+                default = f'"{p.default}"'
+            else:
+                default = f"{p.default:g}"
+            rows.append(f"| | | `{name}` | {unit} | {default} | {p.description} |")
+    return "\n".join(rows)

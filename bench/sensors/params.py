@@ -199,7 +199,9 @@ def markdown_table(specs: Mapping[str, Param]) -> str:
         if p.dimension in DIMENSIONS:
             unit = p.unit
         else:
-            unit = {"integer": "integer", "number": "number", "boolean": "true/false"}.get(p.dimension, "text")
+            unit = {"integer": "integer", "number": "1", "boolean": "true/false", "text_list": "list"}.get(
+                p.dimension, "text"
+            )
         d = p.default
         if isinstance(d, bool):
             default = "true" if d else "false"
@@ -207,6 +209,8 @@ def markdown_table(specs: Mapping[str, Param]) -> str:
             default = "[" + ", ".join(f'"{x}"' if isinstance(x, str) else f"{x:g}" for x in d) + "]"
         elif isinstance(d, str):
             default = f'"{d}"'
+        elif p.n > 1:
+            default = "[" + ", ".join([f"{d:g}"] * p.n) + "]"
         else:
             default = f"{d:g}"
         text = p.description
