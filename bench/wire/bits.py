@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Field", "pack", "unpack", "covered_mask", "round_div", "INT64_MAX_US"]
+__all__ = ["Field", "pack", "unpack", "replace", "covered_mask", "round_div", "INT64_MAX_US"]
 
 #: Largest microsecond time that fits int64 nanoseconds.
 INT64_MAX_US = int(np.iinfo(np.int64).max // 1000)
@@ -121,3 +121,10 @@ def round_div(t_ns: np.ndarray, unit_ns: int) -> np.ndarray:
     """Integer ``t_ns`` (int64) in units of ``unit_ns``, rounded half up, without overflow."""
     q, r = np.divmod(np.asarray(t_ns, np.int64), unit_ns)
     return q + (r >= (unit_ns + 1) // 2)
+
+
+def replace(field: Field, raw, data: np.ndarray) -> np.ndarray:
+    """Overwrite ``field`` in payloads ``data`` (N, L) uint8 in place with ``raw`` (N,) or scalar."""
+    for byte, offset, _shift, nbits in field.spans():
+        data[:, byte] &= np.uint8(~(((1 << nbits) - 1) << offset) & 0xFF)
+    return pack([field], {field.name: raw}, data)

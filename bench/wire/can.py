@@ -28,7 +28,7 @@ import numpy as np
 
 from bench.errors import CodecError
 from bench.frames import CanBatch
-from bench.wire.bits import INT64_MAX_US, covered_mask, pack, round_div, unpack
+from bench.wire.bits import INT64_MAX_US, covered_mask, pack, replace, round_div, unpack
 from bench.wire.crc import crc8_can_rows, crc16_ccitt_false_rows
 from bench.wire.dbc import MessageSpec, SignalSpec, load_specs, spec
 from bench.wire.quantities import QUANTITIES, Quantity
@@ -83,6 +83,29 @@ class CanCodec:
 
     def __repr__(self) -> str:
         return f"CanCodec({self.name}, 0x{self.frame_id:03X}, {self.length} bytes{', FD' if self.fd else ''})"
+
+    @property
+    def value_mask(self) -> np.ndarray:
+        """(length,) uint8: the bits of every signal but the counter and the CRC."""
+        fields = [s.field for s in self.spec.signals if s is not self.crc_signal and s is not self.counter_signal]
+        return covered_mask(fields, self.length)
+
+    def set_counters(self, data: np.ndarray, counters) -> np.ndarray:
+        """Overwrite the counter of payloads (N, length) in place and recompute their CRC."""
+        replace(self.counter_signal.field, np.asarray(counters, np.int64) % self.counter_modulus, data)
+        return self.refresh_crc(data)
+
+    def clip(self, name: str, value) -> np.ndarray:
+        """``value`` of quantity ``name`` (SI) clipped to what its field can carry."""
+        q = next(q for q in self.quantities if q.name == name)
+        out = np.array(value, dtype=np.float64)
+        for i, sname in enumerate(q.signals):
+            s = self._sig[sname]
+            lo, hi = self._bounds[sname]
+            unit = _UNIT_TO_SI.get(s.unit, 1.0)
+            col = out[..., i] if len(q.signals) > 1 else out
+            np.clip(col, (lo * s.scale + s.offset) * unit, (hi * s.scale + s.offset) * unit, out=col)
+        return out
 
     @property
     def counter_modulus(self) -> int:

@@ -45,6 +45,9 @@ __all__ = [
     "encode_one",
     "decode_one",
     "IMU_KINDS",
+    "VALUE_MASK",
+    "refresh_crc",
+    "set_counters",
 ]
 
 SYNC = b"\xaa\x55"
@@ -83,6 +86,11 @@ IMU_SAMPLE_DTYPE = np.dtype(
         ("temperature", "<f8"),  # degC
     ]
 )
+
+#: (42,) uint8: the value bytes of a frame (increments, status, temperature); not sync,
+#: length, counter, time or CRC. Frozen data leaves these unchanged.
+VALUE_MASK = np.zeros(FRAME_SIZE, np.uint8)
+VALUE_MASK[12:40] = 0xFF
 
 #: Batch check status: 0 good, else the kind.
 IMU_KINDS = ("ok", "sync", "length", "crc", "format", "range")
@@ -138,6 +146,20 @@ def encode_batch(t_ns, dtheta, dvel, status, temperature, counter, at_ns=None) -
     """The frames as a :class:`~bench.frames.SerialBatch` due at ``at_ns`` (default ``t_ns``)."""
     frames = encode_frames(t_ns, dtheta, dvel, status, temperature, counter)
     return SerialBatch.from_fixed(np.asarray(t_ns if at_ns is None else at_ns, np.int64), frames)
+
+
+def refresh_crc(frames: np.ndarray) -> np.ndarray:
+    """Recompute the CRC of frames (N, 42) uint8 in place."""
+    crc = crc16_ccitt_false_rows(frames[:, 2:40])
+    frames[:, 40] = (crc & 0xFF).astype(np.uint8)
+    frames[:, 41] = (crc >> 8).astype(np.uint8)
+    return frames
+
+
+def set_counters(frames: np.ndarray, counters) -> np.ndarray:
+    """Overwrite the frame counters of frames (N, 42) in place and recompute their CRC."""
+    frames[:, 3] = (np.asarray(counters, np.int64) % 256).astype(np.uint8)
+    return refresh_crc(frames)
 
 
 def check_frames(frames: np.ndarray) -> np.ndarray:

@@ -31,15 +31,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.wire.imu import FRAME_SIZE, IMU_KINDS, IMU_SAMPLE_DTYPE, PAYLOAD_LENGTH, check_frames, decode_frames
+from bench.wire.imu import (
+    FRAME_SIZE,
+    IMU_KINDS,
+    IMU_SAMPLE_DTYPE,
+    PAYLOAD_LENGTH,
+    VALUE_MASK,
+    check_frames,
+    decode_frames,
+)
 from bench.wire.sequence import SEQ_DUPLICATE, SEQ_KINDS, SequenceChecker
 from bench.wire.tally import Tally
 
 __all__ = ["ImuStreamDecoder"]
 
 _OFFS = np.arange(FRAME_SIZE)
-_VALUE_MASK = np.zeros(FRAME_SIZE, np.uint8)
-_VALUE_MASK[12:40] = 0xFF  # increments, status, temperature
 _KEEP_BYTES = 256  # bytes of a bad run kept for the recording
 
 
@@ -59,7 +65,7 @@ class ImuStreamDecoder:
         self.late_ns = late_ns
         self.stream = stream
         self.tally = tally if tally is not None else Tally()
-        self.sequence = SequenceChecker(256, _VALUE_MASK)
+        self.sequence = SequenceChecker(256, VALUE_MASK)
         self.frames = 0  # frames accepted (duplicates included)
         self.bytes_in = 0
         self._buf = np.zeros(0, np.uint8)

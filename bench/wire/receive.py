@@ -19,7 +19,6 @@ import numpy as np
 
 from bench.frames import CanBatch
 from bench.topics import NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE
-from bench.wire.bits import covered_mask
 from bench.wire.can import DECODE_KINDS, CanCodec, codec
 from bench.wire.sequence import SEQ_DUPLICATE, SEQ_KINDS, SEQ_REPEAT, SEQ_SKIP, SequenceChecker
 from bench.wire.tally import Tally
@@ -33,11 +32,6 @@ BENCH_MESSAGES = ("BENCH_TIME", "BENCH_EPOCH", "BENCH_CMD", "ODOMETER", "DRIVER_
 _KEEP_PER_KIND = 64  # sequence-labelled frames kept per kind and batch (all are counted)
 
 
-def _value_mask(c: CanCodec) -> np.ndarray:
-    fields = [s.field for s in c.spec.signals if s is not c.crc_signal and s is not c.counter_signal]
-    return covered_mask(fields, c.length)
-
-
 class _CanReceiver:
     """Grouping by identifier, checking, and sequence labelling shared by both receivers."""
 
@@ -45,7 +39,7 @@ class _CanReceiver:
         self.tally = tally if tally is not None else Tally()
         self.codecs = {codec(n).frame_id: codec(n) for n in names}
         self.sequences = {
-            c.frame_id: SequenceChecker(c.counter_modulus, _value_mask(c) if c.name in stale else None)
+            c.frame_id: SequenceChecker(c.counter_modulus, c.value_mask if c.name in stale else None)
             for c in self.codecs.values()
         }
         self.frames = 0
