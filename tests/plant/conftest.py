@@ -1,0 +1,51 @@
+"""Fixtures: the bench's FMUs (built by `make install`, or here into a temporary folder)."""
+
+from __future__ import annotations
+
+import importlib.util
+import shutil
+from pathlib import Path
+
+import pytest
+
+from bench.paths import fmu_dir
+
+DATA = Path(__file__).parent / "data"
+NAMES = ("TrackedVehicle", "TrackedVehicle_fmi2", "WheeledVehicle", "WheeledVehicle_fmi2")
+
+
+def fmu_build_module():
+    """fmu/build.py as a module (it is a script beside the package, not part of it)."""
+    spec = importlib.util.spec_from_file_location("bench_fmu_build", fmu_dir() / "build.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.fixture(scope="session")
+def fmu_build(tmp_path_factory) -> Path:
+    """Folder holding the four bench FMUs and their SHA256SUMS."""
+    if shutil.which("cmake") is None:
+        pytest.skip("cmake is needed to build the FMUs from source")
+    built = fmu_dir() / "build"
+    if all((built / f"{n}.fmu").is_file() for n in NAMES) and (built / "SHA256SUMS").is_file():
+        return built
+    out = tmp_path_factory.mktemp("fmu_build")
+    mod = fmu_build_module()
+    fmus = []
+    for folder in sorted((fmu_dir() / "models").iterdir()):
+        fmus += mod.build_model(folder, out, ["3", "2"])
+    mod.write_manifest(out, fmus)
+    return out
+
+
+@pytest.fixture(scope="session")
+def foreign_fmu(tmp_path_factory) -> Path:
+    """The third-party-style FMI 2.0 FMU of tests/plant/data/foreign, with a SHA256SUMS."""
+    if shutil.which("cmake") is None:
+        pytest.skip("cmake is needed to build the test FMU")
+    out = tmp_path_factory.mktemp("foreign")
+    mod = fmu_build_module()
+    (fmu,) = mod.build_model(DATA / "foreign", out, ["2"])
+    mod.write_manifest(out, [fmu])
+    return fmu
