@@ -4,8 +4,8 @@ import time
 
 import pytest
 
-from bench.errors import ConfigError, DutError
 from bench.dut.process import DutProcess, describe_exit, fill_placeholders
+from bench.errors import ConfigError, DutError
 
 
 def _alive(pid: int) -> bool:
@@ -17,9 +17,16 @@ def _alive(pid: int) -> bool:
 
 
 def test_placeholders():
-    argv = fill_placeholders("dut --can {can_interface}:{can_channel} --imu '{imu_port}' -c {config}",
-                             {"can_interface": "virtual", "can_channel": "v0", "imu_port": "/dev/pts/3",
-                              "gnss_port": "/dev/pts/4", "config": "c.toml"})
+    argv = fill_placeholders(
+        "dut --can {can_interface}:{can_channel} --imu '{imu_port}' -c {config}",
+        {
+            "can_interface": "virtual",
+            "can_channel": "v0",
+            "imu_port": "/dev/pts/3",
+            "gnss_port": "/dev/pts/4",
+            "config": "c.toml",
+        },
+    )
     assert argv == ["dut", "--can", "virtual:v0", "--imu", "/dev/pts/3", "-c", "c.toml"]
     with pytest.raises(ConfigError, match="unknown placeholder"):
         fill_placeholders("dut {can_bus}", {})
@@ -28,7 +35,9 @@ def test_placeholders():
 
 
 def test_output_is_captured_and_exit_is_reported():
-    with DutProcess([sys.executable, "-c", "import sys; print('hello'); print('oops', file=sys.stderr); sys.exit(3)"]) as p:
+    with DutProcess(
+        [sys.executable, "-c", "import sys; print('hello'); print('oops', file=sys.stderr); sys.exit(3)"]
+    ) as p:
         deadline = time.monotonic() + 10
         while p.poll() is None and time.monotonic() < deadline:
             time.sleep(0.01)
@@ -39,9 +48,11 @@ def test_output_is_captured_and_exit_is_reported():
 
 
 def test_a_dut_ignoring_sigterm_and_its_children_are_killed():
-    code = ("import signal, subprocess, sys, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); "
-            "c = subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(60)']); "
-            "print(c.pid, flush=True); time.sleep(60)")
+    code = (
+        "import signal, subprocess, sys, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); "
+        "c = subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(60)']); "
+        "print(c.pid, flush=True); time.sleep(60)"
+    )
     p = DutProcess([sys.executable, "-c", code], shutdown_timeout_s=0.5)
     deadline = time.monotonic() + 10
     child = None
