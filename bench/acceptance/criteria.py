@@ -11,7 +11,8 @@ same metric of the named one (dimensionless).
 Over Monte Carlo runs (``[monte_carlo]``):
 
 * ``each`` (default) -- every run must meet the limit; the verdict is the worst;
-* ``pass_runs = k`` -- at least k runs must meet it;
+* ``pass_runs = k`` -- at least k runs must meet it (the value shown is the k-th best
+  run's);
 * ``percentile = p`` with ``confidence = c`` -- a distribution-free confidence bound of
   the p-th percentile over the runs (an order statistic chosen by the binomial law) must
   meet it: the upper bound for ``at_most``/``within``, the lower for ``at_least``;
@@ -230,14 +231,16 @@ def aggregate_runs(criterion: Criterion, runs: Sequence[RunValue]) -> Aggregate:
         need = int(mc.pass_runs or 0)
         ok = [r for r in runs if r.verdict.passed]
         text = f"{len(ok)} of {len(runs)} runs met the limit, {need} required"
+        ranked = sorted(measured, key=lambda v: -judge_value(criterion.limit, 0.0, v)[1])
+        v = ranked[need - 1] if len(ranked) >= need else math.nan  # the need-th best run
+        margin = judge_value(criterion.limit, band, v)[1] if not math.isnan(v) else math.nan
         if len(ok) >= need:
             marginal = sum(r.verdict is Verdict.MARGINAL for r in ok)
             verdict = Verdict.MARGINAL if len(ok) - marginal < need else Verdict.PASS
-            return Aggregate(float(len(ok)), verdict, float(len(ok) - need), text)
+            return Aggregate(v, verdict, margin, text)
         if len(ok) + len(errors) >= need:
-            why = f"{text}; {len(errors)} runs could not be judged"
-            return Aggregate(float(len(ok)), Verdict.ERROR, math.nan, why)
-        return Aggregate(float(len(ok)), Verdict.FAIL, float(len(ok) - need), text)
+            return Aggregate(v, Verdict.ERROR, margin, f"{text}; {len(errors)} runs could not be judged")
+        return Aggregate(v, Verdict.FAIL, margin, text)
     if errors:
         return Aggregate(math.nan, Verdict.ERROR, math.nan, f"{len(errors)} of {len(runs)} runs could not be judged")
     if len(measured) < len(runs):

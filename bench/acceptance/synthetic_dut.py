@@ -23,7 +23,7 @@ from bench.faults.schedule import FaultWindow
 from bench.nav import earth
 from bench.nav.rotation import wrap_2pi
 from bench.rng import stream
-from bench.scenario.trajectory import Trajectory, truth_at
+from bench.scenario.trajectory import SegmentInfo, Trajectory, truth_at
 from bench.scoring.faults import target_bit
 from bench.topics import NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE
 
@@ -96,6 +96,7 @@ def _signature(
     switches: np.ndarray,
     faults: Sequence[FaultWindow],
     detected: dict[int, tuple[int, int, bool, int]],
+    segments: Sequence[SegmentInfo] = (),
 ) -> np.ndarray:
     n = 1 if e.quantity == "heading" else 3
     out = np.zeros((len(t), n))
@@ -138,6 +139,15 @@ def _signature(
                 continue  # the DUT excluded the faulty sensor: no drift
             s, f = w.start_ns * 1e-9, w.end_ns * 1e-9
             out += np.clip(ts - s, 0.0, f - s)[:, None] * e.rate
+    elif e.kind == "segment_drift":
+        rec = e.recovery_ns * 1e-9
+        for seg in segments:
+            if seg.gnss not in e.gnss:
+                continue
+            s, f = seg.start_s, seg.end_s
+            grown = np.clip(ts - s, 0.0, f - s)
+            grown = grown * np.clip(1.0 - (ts - f) / rec, 0.0, 1.0) if rec > 0 else np.where(ts >= f, 0.0, grown)
+            out += grown[:, None] * e.rate
     return out
 
 
@@ -167,7 +177,7 @@ def dut_output(
     e_vel = np.zeros((len(t), 3))
     e_att = np.zeros((len(t), 3))
     for e in spec.errors:
-        v = _signature(e, t, k, period_ns * 1e-9, seed, switches, faults, detected)
+        v = _signature(e, t, k, period_ns * 1e-9, seed, switches, faults, detected, traj.segments())
         target = {"position": e_pos, "velocity": e_vel, "attitude": e_att}.get(e.quantity)
         if target is None:  # heading
             e_att[:, 0] += v[:, 0]

@@ -14,7 +14,8 @@ so scoring must recover exactly what was put in. Keys (see ``docs/test_cases.md`
   ``sigma``, ``tau``, seeded), ``oscillation`` (``amplitude`` sine of ``period`` from
   ``start`` for ``duration``), ``switch_step`` and ``switch_oscillation`` (at every frame
   switch of the DUT), ``fault_drift`` (``rate`` during the fault windows of ``targets``,
-  ``when`` undetected or always, held after);
+  ``when`` undetected or always, held after), ``segment_drift`` (``rate`` through the
+  scenario segments whose sky is one of ``gnss``, back to zero over ``recovery`` after);
 * ``[[detect]]`` fault reactions: ``target``, ``windows`` (all, or indices of that
   target's windows in time order), ``latency``, ``hold``, ``exclude``, ``class``;
 * ``[[false_alarm]]``: ``target``, ``at``, ``duration``, ``exclude``;
@@ -33,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bench.acceptance.tomlcheck import Table
+from bench.scenario.motion import GNSS_FLAGS
 from bench.scoring.faults import target_bit
 from bench.units import vector
 
@@ -50,7 +52,16 @@ RATE_UNITS = {
     "attitude": ("angular_rate", "arcmin/s"),
     "heading": ("angular_rate", "arcmin/s"),
 }
-ERROR_KINDS = ("bias", "ramp", "markov", "oscillation", "switch_step", "switch_oscillation", "fault_drift")
+ERROR_KINDS = (
+    "bias",
+    "ramp",
+    "markov",
+    "oscillation",
+    "switch_step",
+    "switch_oscillation",
+    "fault_drift",
+    "segment_drift",
+)
 OUTPUT_KINDS = ("drop", "drop_every", "late", "jitter", "invalid", "bad_frames")
 END_STATUSES = ("complete", "error", "interrupted", "dut_error", "timing_budget", "link_lost")
 
@@ -71,6 +82,8 @@ class ErrorSignature:
     duration_ns: int | None = None
     targets: tuple[str, ...] = ()
     when: str = "undetected"
+    gnss: tuple[str, ...] = ()
+    recovery_ns: int = 0
     index: int = 0
 
 
@@ -150,8 +163,14 @@ def _error(t: Table, i: int) -> ErrorSignature:
     args: dict = {"kind": kind, "quantity": quantity, "start_ns": start, "end_ns": end, "index": i}
     if kind in ("bias", "switch_step"):
         args["value"] = _vec(t, "value", quantity)
-    elif kind in ("ramp", "fault_drift"):
+    elif kind in ("ramp", "fault_drift", "segment_drift"):
         args["rate"] = _vec(t, "rate", quantity, rate=True)
+        if kind == "segment_drift":
+            args["gnss"] = tuple(t.str_list("gnss", required=True))
+            for g in args["gnss"]:
+                if g not in GNSS_FLAGS:
+                    raise t.error("gnss", f"expected one of {', '.join(GNSS_FLAGS)}, found {g!r}")
+            args["recovery_ns"] = t.time_ns("recovery", 0)
         if kind == "fault_drift":
             args["targets"] = tuple(t.str_list("targets", required=True))
             for tg in args["targets"]:

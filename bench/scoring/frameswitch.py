@@ -11,6 +11,9 @@ errors. For each switch and each quantity -- ``position`` (3-D error vector, m),
 * the **pre-switch band**: over ``[ts - pre, ts)`` the mean ``m0`` and the half-width
   ``band = max(max |e - m0|, floor)``;
 * **amplitude** = ``max |e(t) - m0|`` over ``[ts, ts + post]``: the peak excursion;
+* **excess** = ``max(0, amplitude - band)``: how far the excursion leaves the band the
+  error kept before the switch (the oscillation the switch added, net of the DUT's
+  ordinary wander);
 * **settling** = time from ``ts`` to the last epoch of the post window outside the band
   (0 if none is; infinite if the post window ends outside it);
 * **rms_ratio** = RMS of ``|e|`` over the post window / RMS over the pre window.
@@ -139,7 +142,14 @@ def _measure(
         settling = float((t[post[outside[-1]]] - t[i_sw]) * 1e-9)
     rms_post = float(np.sqrt(np.mean(np.sum(e[post] ** 2, axis=1))))
     ratio = rms_post / rms_pre if rms_pre > 0 else (math.nan if math.isnan(rms_pre) else math.inf)
-    return {"jump": jump, "amplitude": amplitude, "band": band, "settling": settling, "rms_ratio": ratio}
+    return {
+        "jump": jump,
+        "amplitude": amplitude,
+        "excess": max(0.0, amplitude - band),
+        "band": band,
+        "settling": settling,
+        "rms_ratio": ratio,
+    }
 
 
 def analyse_switches(

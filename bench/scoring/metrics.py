@@ -75,6 +75,7 @@ _FAULTS = {
 _SWITCH_MEASURES = {
     "jump": "jump across the switch beyond the truth's change",
     "amplitude": "peak excursion after the switch from the pre-switch mean",
+    "excess": "peak excursion beyond the pre-switch band",
     "settling": "time to settle back into the pre-switch band",
     "rms_ratio": "RMS after / RMS before the switch",
 }
