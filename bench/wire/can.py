@@ -84,6 +84,10 @@ class CanCodec:
     def __repr__(self) -> str:
         return f"CanCodec({self.name}, 0x{self.frame_id:03X}, {self.length} bytes{', FD' if self.fd else ''})"
 
+    def raw_bounds(self, signal: str) -> tuple[int, int]:
+        """Allowed raw range of DBC signal ``signal``: its field cut to the DBC [minimum, maximum]."""
+        return self._bounds[signal]
+
     @property
     def value_mask(self) -> np.ndarray:
         """(length,) uint8: the bits of every signal but the counter and the CRC."""
