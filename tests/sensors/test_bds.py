@@ -73,6 +73,7 @@ def test_lever_arm_and_latency_reproduce_exactly_without_errors(short_traj, rate
     assert np.all(rec["fix_quality"] == 1) and np.all(rec["outage_style"] == 0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("model", "h95", "v95"), [("seed001", 10.0, 10.0), ("seed001_asia_pacific", 5.0, 5.0)])
 def test_long_static_run_matches_the_95_percent_figures(model, h95, v95):
     traj = StaticTrajectory(1_000_000.0)
@@ -96,6 +97,7 @@ def test_long_static_run_matches_the_95_percent_figures(model, h95, v95):
     assert rec["sigma_lat"][0] == pytest.approx(h95 / R95_2D) and rec["sigma_alt"][0] == pytest.approx(v95 / R95_1D)
 
 
+@pytest.mark.slow
 def test_white_and_markov_parts_have_the_configured_sigma_and_tau():
     traj = StaticTrajectory(1_000_000.0)
     rec = run_all(receiver(seed=8, model="seed001", velocity_markov_fraction=0.5), traj, window_s=200_000.0)

@@ -78,6 +78,7 @@ def test_seed000_white_noise_at_50_hz():
     assert np.std(err) == pytest.approx(0.02, rel=0.10)  # at rest the scale factor does not show
 
 
+@pytest.mark.slow
 def test_seed000_scale_factor_markov_sigma_and_tau():
     # seed 000: scale factor first-order Markov, sigma 0.1 %, tau 300 s; white 0.02 m/s.
     # Statistics need thousands of correlation times: the rate is lowered to 2 Hz (the

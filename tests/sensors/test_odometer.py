@@ -88,6 +88,7 @@ def test_plant_wheel_speed_is_measured_not_the_body():
     assert rec["pulses"][-1] == 1300
 
 
+@pytest.mark.slow
 def test_scale_factor_markov_and_speed_noise_statistics():
     # 10^6 s at 2 Hz, 5000 correlation times; the process is discretised exactly
     traj = EquatorTrajectory(1_000_000.0, speed=10.0)
