@@ -15,6 +15,7 @@ read by a vehicle's electronics; :meth:`DriverScript.held` gives exactly what wa
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -95,7 +96,7 @@ class DriverScript:
 
         The first row is the initial tick (t = 0).
         """
-        n = int(math.floor(self.duration_s * self.rate_hz + 1e-9)) + 1
+        n = math.floor(self.duration_s * self.rate_hz + 1e-9) + 1
         t = np.arange(n) / self.rate_hz
         vals = np.stack([self.value(c, t) for c in names], axis=1) if names else np.zeros((n, 0))
         changed = np.ones(n, dtype=bool)
@@ -197,7 +198,9 @@ def parse_commands(
         surface = ev.get("surface", surface)
         gnss = ev.get("gnss", gnss)
         if surface not in SURFACES:
-            raise ConfigError(f"expected one of {', '.join(SURFACES)}, found {surface!r}", file=file, key=f"{key}.surface")
+            raise ConfigError(
+                f"expected one of {', '.join(SURFACES)}, found {surface!r}", file=file, key=f"{key}.surface"
+            )
         if gnss not in GNSS_FLAGS:
             raise ConfigError(f"expected one of {', '.join(GNSS_FLAGS)}, found {gnss!r}", file=file, key=f"{key}.gnss")
         for name in CHANNELS:
@@ -219,7 +222,7 @@ def parse_commands(
             current[name] = target
         events.append({"at": t, "label": str(ev.get("label", "")), "surface": surface, "gnss": gnss, "raw": dict(ev)})
     for name, ps in pieces.items():
-        for a, b in zip(ps, ps[1:], strict=False):
+        for a, b in itertools.pairwise(ps):
             if b.t0 < a.t1 - 1e-9:
                 raise ConfigError(f"{name}: a new command at {b.t0:g} s starts before the ramp ending at {a.t1:g} s",
                                   file=file, key="command")

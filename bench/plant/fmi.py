@@ -14,6 +14,7 @@ they open an instance: opening one runs the FMU's native code.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import shutil
 from dataclasses import dataclass, field
@@ -174,13 +175,14 @@ class FmuInstance:
                     instanceName=self._name,
                 )
 
-                def log3(env, status, category, message):  # noqa: ARG001
+                def log3(env, status, category, message):
                     self.log.append(f"[{_STATUS[status]}] {(message or b'').decode(errors='replace')}")
 
                 self._cb = fmi3LogMessageCallback(log3)
                 self._fmu.instantiate(loggingOn=False, logMessage=log3)
                 self._fmu.enterInitializationMode(startTime=start_time)
             else:
+                from fmpy import calloc, free
                 from fmpy.fmi2 import (
                     FMU2Slave,
                     fmi2CallbackAllocateMemoryTYPE,
@@ -189,14 +191,12 @@ class FmuInstance:
                     fmi2CallbackLoggerTYPE,
                 )
 
-                from fmpy import calloc, free
-
                 self._fmu = FMU2Slave(
                     guid=md_guid, unzipDirectory=self._dir, modelIdentifier=self.desc.identifier,
                     instanceName=self._name,
                 )
 
-                def log2(env, name, status, category, message):  # noqa: ARG001
+                def log2(env, name, status, category, message):
                     self.log.append(f"[{_STATUS[status]}] {(message or b'').decode(errors='replace')}")
 
                 cb = fmi2CallbackFunctions()
@@ -239,10 +239,8 @@ class FmuInstance:
                     fmu.terminate()
             except Exception:  # a failed FMU may refuse to terminate; free it all the same
                 pass
-            try:
+            with contextlib.suppress(Exception):
                 fmu.freeInstance()
-            except Exception:
-                pass
         self._state = "closed"
         self._rows = []
         self._buffer = None
@@ -272,9 +270,11 @@ class FmuInstance:
                 if var.type == "Float64":
                     (self._fmu.setFloat64 if v3 else self._fmu.setReal)([var.vr], [float(value)])
                 elif var.type == "Int32":
-                    (self._fmu.setInt32 if v3 else self._fmu.setInteger)([var.vr], [int(round(value))])
+                    (self._fmu.setInt32 if v3 else self._fmu.setInteger)([var.vr], [round(value)])
                 else:
-                    raise PlantError(f"{self.desc.path.name}: variable {name!r} is {var.type}; expected Float64 or Int32")
+                    raise PlantError(
+                        f"{self.desc.path.name}: variable {name!r} is {var.type}; expected Float64 or Int32"
+                    )
             except PlantError:
                 raise
             except Exception as exc:
@@ -340,7 +340,10 @@ class FmuInstance:
     def _step_failed(self, status: int, t: float, terminate: bool, early: bool) -> None:
         self._state = "failed"
         name = _STATUS.get(status, str(status))
-        why = "asked to terminate" if terminate else ("returned early" if early else f"returned {name}")
+        if status > 1:
+            why = f"returned {name}"
+        else:
+            why = "asked to terminate the simulation" if terminate else "returned early"
         raise PlantError(self._fail_message(f"doStep at t = {t:.6f} s {why}"))
 
 

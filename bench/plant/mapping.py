@@ -76,7 +76,7 @@ class Channel:
 
     def to_fmu(self, value: float) -> float:
         if self.values is not None:
-            return float(self.values[int(round(value))])
+            return float(self.values[round(value)])
         return self.offset + self.sign * value / self.k
 
 
@@ -156,7 +156,9 @@ def _unit_factor(unit: str | None, expect: str, file: str, key: str) -> float:
 def _only(table: Mapping[str, Any], allowed: set[str], key: str, file: str) -> None:
     for k in table:
         if k not in allowed:
-            raise ConfigError(f"unknown key {k!r}; expected one of {', '.join(sorted(allowed))}", file=file, key=f"{key}.{k}")
+            raise ConfigError(
+                f"unknown key {k!r}; expected one of {', '.join(sorted(allowed))}", file=file, key=f"{key}.{k}"
+            )
 
 
 def _sign(value: Any, file: str, key: str) -> float:

@@ -90,7 +90,8 @@ def _events(setup: PlantSetup, names: list[str]) -> dict[int, dict[str, float]]:
     ticks, vals = setup.script.ticks(names)
     for t, row in zip(ticks, vals, strict=True):
         k = _step_index(float(t), h, "a command tick")
-        events.setdefault(k, {}).update({m.inputs[c].var: m.inputs[c].to_fmu(float(v)) for c, v in zip(names, row, strict=True)})
+        values = {m.inputs[c].var: m.inputs[c].to_fmu(float(v)) for c, v in zip(names, row, strict=True)}
+        events.setdefault(k, {}).update(values)
     for t, surface in setup.script.surface_changes():
         if surface not in setup.surfaces:
             if setup.surfaces:

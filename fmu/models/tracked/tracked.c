@@ -1,6 +1,6 @@
 /* TrackedVehicle: a tracked vehicle steered by two levers, after Tang et al. (seed 002).
  *
- * States: vD drive speed (gearbox output as track speed at 1:1, m/s), gi governor
+ * States: vs governor set speed (m/s), vD drive speed (gearbox output as track speed at 1:1, m/s), gi governor
  * integrator (N), kl/kr engaged speed ratios of the left/right steering mechanisms,
  * u forward body speed (m/s), r yaw rate about body up (rad/s, counter-clockwise),
  * v lateral body speed (m/s, right), th/thd pitch and rate, ga/gad roll and rate, psi heading.
@@ -19,7 +19,9 @@
  * Dynamics. The hull speed u follows u_kin through the track traction
  *   T = mu W sign(i) (1 - exp(-|i| / i_c)),  i = (u_kin - u) / max(|u_kin|, |u|, 1 m/s),
  * against rolling resistance, grade and air drag; the drive line (mass m_driveline) is
- * driven by a governed engine (PI on throttle * v_gov_max, force and power limited) and
+ * driven by a governed engine (set speed vs following throttle * v_gov_max with 0.2 s lag,
+ * PI on vs - vD plus the force to accelerate the vehicle along vs; force and power
+ * limited, no integration into a saturated engine) and
  * braked by the service brake, and carries the traction reaction kappa T (kappa the mean
  * speed ratio) and the turning power M_r |r| with M_r = mu_t(R) W L_track / 4 and Steeds'
  * mu_t(R) = mu_t / (0.925 + 0.15 R / B). Yaw rate and lateral skid follow their kinematic
@@ -89,15 +91,18 @@ static void evaluate(const Model *m, const double *x, Aux *a, double *dx) {
     const double mu_t = P(mu_t) * ar * P(B) / (0.925 * ar * P(B) + 0.15 * fabs(u) + 1e-9);
     const double F_turn = mu_t * W * P(L_track) / 4.0 * ar / sqrt(vD * vD + 0.01);
     /* governed engine and brake */
-    const double e = clamp(P(throttle), 0.0, 1.0) * P(v_gov_max) - vD;
-    const double F_cmd = P(K_gov) * e + x[X_gi];
+    const double kappa = 0.5 * (kl + kr);
+    const double dvs = (clamp(P(throttle), 0.0, 1.0) * P(v_gov_max) - x[X_vs]) / 0.2; /* pedal to set speed */
+    const double e = x[X_vs] - vD;
+    const double F_ff = (P(m_driveline) + P(m) * kappa * kappa) * dvs; /* force to follow the set speed */
+    const double F_cmd = P(K_gov) * e + x[X_gi] + F_ff;
     const double F_top = fmin(P(F_peak), P(P_max) / fmax(fabs(vD), 0.1));
     const double F_bot = -P(F_engine_brake) * tanh(vD / 0.2);
     const double F_e = clamp(F_cmd, F_bot, F_top);
     double dgi = P(Ki_gov) * e;
     if ((F_cmd >= F_top && e > 0.0) || (F_cmd <= F_bot && e < 0.0)) dgi = 0.0; /* anti-windup */
     const double F_b = clamp(P(brake), 0.0, 1.0) * P(F_brake_max) * tanh(vD / 0.05);
-    const double kappa = 0.5 * (kl + kr);
+    dx[X_vs] = dvs;
     dx[X_vD] = (F_e - F_b - kappa * T - F_turn) / P(m_driveline);
     dx[X_gi] = dgi;
     dx[X_kl] = (lever_ratio(P(left_lever), P(ratio_I)) - kl) / P(tau_shift);
