@@ -205,6 +205,10 @@ def windows_for(schedule: FaultSchedule | Iterable[FaultWindow] | None, target: 
     for w in out:
         p = w.params
         where = f"fault {w.id} ({w.target} {w.kind})"
+        if w.kind == "multipath" and not p.get("factor", 1.0) > 0.0:
+            raise ConfigError(f"{where}: factor must be positive, found {p.get('factor')!r}")
+        if w.kind in ("idling", "sliding") and p.get("ratio", 0.0) < 0.0:
+            raise ConfigError(f"{where}: ratio must not be negative, found {p['ratio']!r}")
         if w.kind == "outage" and p.get("style", "") not in ("", "no_fix", "silent"):
             raise ConfigError(f"{where}: style must be no_fix or silent, found {p['style']!r}")
         if w.kind == "axis_failure":

@@ -171,9 +171,9 @@ def resolve(
 ) -> Resolved:
     """Defaults, then the named parameter set (``model = ...``), then the table's own keys."""
     where = where or kind
+    if table is not None and not isinstance(table, Mapping):
+        raise ConfigError(f"expected a table, found {table!r}", file=file, key=where)
     table = dict(table or {})
-    if not isinstance(table, Mapping):
-        raise ConfigError("expected a table", file=file, key=where)
     values = defaults(specs)
     model_path: Path | None = None
     model_name = "default"

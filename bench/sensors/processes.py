@@ -199,6 +199,8 @@ def fit_markov(x: np.ndarray, dt: float, max_lag: int | None = None) -> tuple[fl
     lags = np.arange(1, max_lag + 1)
     vals = c[1 : max_lag + 1]
     ok = vals > 0.0
+    if ok.sum() < 2:  # no correlated part to speak of: all white
+        return math.sqrt(max(c[0], 0.0)), 0.0, math.nan
     slope, intercept = np.polyfit(lags[ok] * dt, np.log(vals[ok]), 1)
     tau = -1.0 / slope
     s_m2 = math.exp(intercept)

@@ -332,6 +332,9 @@ def test_fault_parameters_are_checked():
     bad = parse_schedule([{"start": 1, "end": 2, "target": "bds", "kind": "outage", "params": {"style": "loud"}}])
     with pytest.raises(ConfigError, match="no_fix or silent"):
         windows_for(bad, "bds")
+    bad = parse_schedule([{"start": 1, "end": 2, "target": "bds", "kind": "multipath", "params": {"factor": 0}}])
+    with pytest.raises(ConfigError, match="factor must be positive"):
+        windows_for(bad, "bds")
     bad = parse_schedule([{"start": 1, "end": 2, "target": "imu", "kind": "axis_failure", "params": {"axis": "w"}}])
     with pytest.raises(ConfigError, match="axis must be one of x, y, z"):
         windows_for(bad, "imu")
