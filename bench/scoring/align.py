@@ -6,8 +6,11 @@ grid (100 Hz). The truth is interpolated to the DUT's times:
 * position: cubic Hermite on latitude, (unwrapped) longitude and height, with the
   derivatives from the recorded velocity (exact for motion with constant acceleration);
 * velocity: cubic Hermite with the recorded ``acc_n`` as derivative;
-* attitude: spherical linear interpolation of ``q_bn`` on SO(3) (never of Euler angles,
-  which jump at 0/360 deg).
+* attitude: on SO(3), never on Euler angles (which jump at 0/360 deg): the rotation from
+  the sample before, ``q = q0 * exp(r(x))``, with ``r`` a cubic Hermite curve in the
+  tangent space from 0 to ``log(q0^-1 q1)`` whose end slopes are the body rates
+  ``omega_nb_b * dt`` derived from the recorded inertial rates (a spherical linear
+  interpolation that also matches the angular rates at both samples).
 
 At a DUT time equal to a truth sample the recorded sample is used as is. DUT times
 outside the truth's span are not covered and are left out of every metric.
@@ -24,7 +27,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.nav import earth
-from bench.nav.rotation import euler_to_quat, quat_conj, quat_mul, quat_to_euler, quat_to_rotvec, wrap_pi
+from bench.nav.rotation import (
+    euler_to_quat,
+    quat_conj,
+    quat_mul,
+    quat_to_dcm,
+    quat_to_euler,
+    quat_to_rotvec,
+    wrap_pi,
+)
 
 __all__ = ["AlignedTruth", "interpolate_truth", "NavErrors", "nav_errors", "cumulative_distance"]
 
@@ -62,17 +73,29 @@ def _hermite(p0, p1, m0, m1, x):
     return (2 * x3 - 3 * x2 + 1) * p0 + (x3 - 2 * x2 + x) * m0 + (-2 * x3 + 3 * x2) * p1 + (x3 - x2) * m1
 
 
-def _slerp(q0: np.ndarray, q1: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Spherical interpolation of unit quaternions (M, 4) at fractions x (M,)."""
-    dot = np.sum(q0 * q1, axis=1)
-    q1 = np.where(dot[:, None] < 0.0, -q1, q1)
-    rel = quat_mul(quat_conj(q0), q1)
-    rot = quat_to_rotvec(rel) * x[:, None]
-    half = 0.5 * np.linalg.norm(rot, axis=1)
+def _exp(r: np.ndarray) -> np.ndarray:
+    """Quaternions (M, 4) of rotation vectors (M, 3)."""
+    half = 0.5 * np.linalg.norm(r, axis=1)
     small = half < 1e-8
     s = np.where(small, 0.5, np.sin(half) / np.where(small, 1.0, 2.0 * half))
-    dq = np.concatenate([np.cos(half)[:, None], rot * s[:, None]], axis=1)
-    return quat_mul(q0, dq)
+    return np.concatenate([np.cos(half)[:, None], r * s[:, None]], axis=1)
+
+
+def _omega_nb_b(truth: np.ndarray) -> np.ndarray:
+    """Body rate relative to the navigation frame, in b (N, 3), from the recorded
+    inertial rate: ``omega_nb_b = omega_ib_b - C_bn^T (omega_ie_n + omega_en_n)``."""
+    w_in = earth.earth_rate_n(truth["lat"]) + earth.transport_rate_n(truth["lat"], truth["h"], truth["vel_n"])
+    C = quat_to_dcm(truth["q_bn"])
+    return truth["omega_ib_b"] - np.einsum("nji,nj->ni", C, w_in)
+
+
+def _so3_hermite(q0: np.ndarray, q1: np.ndarray, w0: np.ndarray, w1: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Attitude between samples q0, q1 (M, 4) with body rates w0, w1 (M, 3) * dt."""
+    dot = np.sum(q0 * q1, axis=1)
+    q1 = np.where(dot[:, None] < 0.0, -q1, q1)
+    r1 = quat_to_rotvec(quat_mul(quat_conj(q0), q1))
+    r = _hermite(np.zeros_like(r1), r1, w0, w1, x)
+    return quat_mul(q0, _exp(r))
 
 
 def interpolate_truth(truth: np.ndarray, t_ns: np.ndarray) -> AlignedTruth:
@@ -94,7 +117,8 @@ def interpolate_truth(truth: np.ndarray, t_ns: np.ndarray) -> AlignedTruth:
     pos = _hermite(pos_all[i], pos_all[i + 1], rates[i] * dt[:, None], rates[i + 1] * dt[:, None], x)
     acc_all = truth["acc_n"]
     vel = _hermite(vel_all[i], vel_all[i + 1], acc_all[i] * dt[:, None], acc_all[i + 1] * dt[:, None], x)
-    q = _slerp(truth["q_bn"][i], truth["q_bn"][i + 1], x)
+    w = _omega_nb_b(truth)
+    q = _so3_hermite(truth["q_bn"][i], truth["q_bn"][i + 1], w[i] * dt[:, None], w[i + 1] * dt[:, None], x)
     psi, theta, gamma = quat_to_euler(q)
     euler = np.column_stack([psi, theta, gamma])
     dist_all = cumulative_distance(truth)
