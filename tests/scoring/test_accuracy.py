@@ -62,7 +62,7 @@ def test_series_statistics_match_hand_values(tmp_path, traj, truth):
 
 def test_growth_and_distance_fraction(tmp_path, traj, truth):
     # a drift of 0.1 m/s north through the blocked last 35 s (after the turn), none before
-    blocked = [seg for seg in traj.segments() if seg.gnss == "blocked"][0]
+    blocked = next(seg for seg in traj.segments() if seg.gnss == "blocked")
     assert (blocked.start_s, blocked.end_s) == (65.0, 100.0)
     t = np.arange(0, 100_000_000_001, 10_000_000)
     ts = t * 1e-9
