@@ -94,3 +94,23 @@ def integrate_profile_position(
         grid_rate[k, 1] = f_lon
         grid_rate[k, 2] = vu
         prev[0], prev[1], prev[2] = f_lat, f_lon, vu
+
+
+@njit(cache=True)
+def hermite_position(grid: np.ndarray, grid_rate: np.ndarray, dt: float, t: np.ndarray, out: np.ndarray) -> None:
+    """Cubic Hermite interpolation of the position grid at times ``t`` into ``out`` (N, 3)."""
+    last = grid.shape[0] - 2
+    for n in range(t.shape[0]):
+        u = t[n] / dt
+        i = int(math.floor(u))
+        i = 0 if i < 0 else (last if i > last else i)
+        x = u - i
+        x2 = x * x
+        x3 = x2 * x
+        h00 = 2.0 * x3 - 3.0 * x2 + 1.0
+        h10 = (x3 - 2.0 * x2 + x) * dt
+        h01 = -2.0 * x3 + 3.0 * x2
+        h11 = (x3 - x2) * dt
+        for c in range(3):
+            out[n, c] = (h00 * grid[i, c] + h10 * grid_rate[i, c] + h01 * grid[i + 1, c]
+                         + h11 * grid_rate[i + 1, c])

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.interpolate import PPoly
 
-from bench.scenario._kernels import integrate_profile_position
+from bench.scenario._kernels import hermite_position, integrate_profile_position
 from bench.scenario.trajectory import Kinematics, SegmentInfo, Trajectory
 
 __all__ = ["Channel", "ProfileTrajectory", "SMOOTHSTEP_PEAK_SLOPE", "smoothstep"]
@@ -183,15 +183,9 @@ class ProfileTrajectory(Trajectory):
         )
 
     def _position(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        dt = 1.0 / self.internal_rate_hz
-        u = t / dt
-        i = np.clip(np.floor(u).astype(np.int64), 0, len(self._grid) - 2)
-        x = (u - i)[:, None]
-        p0, p1 = self._grid[i], self._grid[i + 1]
-        m0, m1 = self._grid_rate[i] * dt, self._grid_rate[i + 1] * dt
-        x2, x3 = x * x, x * x * x
-        p = (2 * x3 - 3 * x2 + 1) * p0 + (x3 - 2 * x2 + x) * m0 + (-2 * x3 + 3 * x2) * p1 + (x3 - x2) * m1
-        return p[:, 0], p[:, 1], p[:, 2]
+        out = np.empty((len(t), 3))
+        hermite_position(self._grid, self._grid_rate, 1.0 / self.internal_rate_hz, np.ascontiguousarray(t), out)
+        return out[:, 0], out[:, 1], out[:, 2]
 
     # -- Trajectory ----------------------------------------------------------------------
     def kinematics(self, t: np.ndarray) -> Kinematics:
