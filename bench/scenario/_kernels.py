@@ -102,7 +102,7 @@ def hermite_position(grid: np.ndarray, grid_rate: np.ndarray, dt: float, t: np.n
     last = grid.shape[0] - 2
     for n in range(t.shape[0]):
         u = t[n] / dt
-        i = int(math.floor(u))
+        i = math.floor(u)
         i = 0 if i < 0 else (last if i > last else i)
         x = u - i
         x2 = x * x
