@@ -30,9 +30,9 @@ from bench.faults.schedule import FaultWindow
 from bench.faults.sensor import doppler_apply
 from bench.rng import stream
 from bench.scenario.motion import SURFACES
-from bench.scenario.trajectory import Trajectory, truth_at
+from bench.scenario.trajectory import Trajectory
 from bench.sensors.base import SensorModel
-from bench.sensors.geometry import mounting_dcm, velocity_b_at
+from bench.sensors.geometry import body_velocity, mounting_dcm
 from bench.sensors.params import Param, Resolved
 from bench.sensors.processes import GaussMarkov, WhiteNoise, period_ns, sample_times
 from bench.topics import TopicSpec
@@ -131,8 +131,7 @@ class DopplerRadar(SensorModel):
         if n == 0:
             return {}
         p = self.p
-        tr = truth_at(traj, t)
-        true = velocity_b_at(tr, self.lever) @ self.beam_b
+        true = body_velocity(traj, t, self.lever) @ self.beam_b
         k = p["scale_factor"] + self._sf.draw(n)
         noise = self._noise.draw(n)
         qjit = self._qnoise.draw(n)

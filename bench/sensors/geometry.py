@@ -16,10 +16,17 @@ from __future__ import annotations
 import numpy as np
 
 from bench.nav import earth
-from bench.nav.rotation import euler_to_dcm
-from bench.scenario.trajectory import Truth
+from bench.nav.rotation import euler_rates_to_omega_nb_b, euler_to_dcm
+from bench.scenario.trajectory import Trajectory, Truth
 
-__all__ = ["mounting_dcm", "forward_axis", "omega_eb_b", "velocity_b_at", "velocity_n_at", "position_at"]
+__all__ = [
+    "mounting_dcm",
+    "forward_axis",
+    "omega_eb_b",
+    "velocity_n_at",
+    "position_at",
+    "body_velocity",
+]
 
 
 def mounting_dcm(yaw: float, pitch: float) -> np.ndarray:
@@ -42,14 +49,6 @@ def omega_eb_b(truth: Truth) -> np.ndarray:
     return truth.omega_ib_b - _mtv(truth.C_bn, earth.earth_rate_n(truth.lat))
 
 
-def velocity_b_at(truth: Truth, lever_b: np.ndarray) -> np.ndarray:
-    """Earth-relative velocity of the point at ``lever_b`` (3,), in the body frame, (N, 3)."""
-    v_b = _mtv(truth.C_bn, truth.vel_n)
-    if np.any(lever_b):
-        v_b = v_b + np.cross(omega_eb_b(truth), lever_b)
-    return v_b
-
-
 def velocity_n_at(truth: Truth, lever_b: np.ndarray) -> np.ndarray:
     """Earth-relative velocity of the point at ``lever_b`` (3,), in ENU, (N, 3)."""
     if not np.any(lever_b):
@@ -65,3 +64,18 @@ def position_at(truth: Truth, lever_b: np.ndarray) -> tuple[np.ndarray, np.ndarr
     xyz = earth.geodetic_to_ecef(truth.lat, truth.lon, truth.h)
     l_e = np.einsum("nji,nj->ni", earth.C_en(truth.lat, truth.lon), l_n)  # C_ne = C_en^T
     return earth.ecef_to_geodetic(xyz + l_e)
+
+
+def body_velocity(traj: Trajectory, t_ns: np.ndarray, lever_b: np.ndarray) -> np.ndarray:
+    """Earth-relative velocity of the point at ``lever_b`` in the body frame, (N, 3), straight
+    from the kinematics (half the cost of :func:`~bench.scenario.trajectory.truth_at`):
+    ``C_bn^T vel_n + (omega_nb_b + C_bn^T omega_en_n) x l_b``."""
+    k = traj.kinematics(np.asarray(t_ns) * 1e-9)
+    psi, theta, gamma = k.euler[:, 0], k.euler[:, 1], k.euler[:, 2]
+    C = euler_to_dcm(psi, theta, gamma)
+    v_b = _mtv(C, k.vel_n)
+    if np.any(lever_b):
+        w_nb = euler_rates_to_omega_nb_b(psi, theta, gamma, k.euler_rate[:, 0], k.euler_rate[:, 1], k.euler_rate[:, 2])
+        w_eb = w_nb + _mtv(C, earth.transport_rate_n(k.lat, k.h, k.vel_n))
+        v_b = v_b + np.cross(w_eb, lever_b)
+    return v_b

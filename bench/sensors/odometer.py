@@ -28,9 +28,9 @@ import numpy as np
 from bench.faults.schedule import FaultWindow
 from bench.faults.sensor import odometer_silenced, odometer_wheel_speed
 from bench.rng import stream
-from bench.scenario.trajectory import Trajectory, truth_at
+from bench.scenario.trajectory import Trajectory
 from bench.sensors.base import SensorModel
-from bench.sensors.geometry import forward_axis, velocity_b_at
+from bench.sensors.geometry import body_velocity, forward_axis
 from bench.sensors.params import Param, Resolved
 from bench.sensors.processes import GaussMarkov, WhiteNoise, period_ns, sample_times
 from bench.topics import TopicSpec
@@ -120,7 +120,7 @@ class Odometer(SensorModel):
         v = traj.wheel_speed(t_ns * 1e-9)
         if v is not None:
             return np.asarray(v, dtype=float)
-        return velocity_b_at(truth_at(traj, t_ns), self.lever) @ self.axis
+        return body_velocity(traj, t_ns, self.lever) @ self.axis
 
     def run(self, traj: Trajectory, t0_ns: int, t1_ns: int) -> dict[str, np.ndarray]:
         t = sample_times(self.period, t0_ns, min(t1_ns, traj.duration_ns))
