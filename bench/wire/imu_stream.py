@@ -70,6 +70,7 @@ class ImuStreamDecoder:
         self.bytes_in = 0
         self._buf = np.zeros(0, np.uint8)
         self._pending: str | None = None  # "sync": an uncounted noise run continues; "counted": a counted run does
+        self._noise = b""  # first bytes of the uncounted noise run, for the record
 
     # ------------------------------------------------------------------ bad runs
     @staticmethod
@@ -92,8 +93,9 @@ class ImuStreamDecoder:
     def _end_pending(self, run: np.ndarray, rx_ns: int) -> None:
         """The noise run that began in earlier bytes ends with ``run``."""
         if self._pending == "sync":
-            self._reject(run, "sync", rx_ns)
+            self._reject(np.frombuffer(self._noise + run[:_KEEP_BYTES].tobytes(), np.uint8), "sync", rx_ns)
         self._pending = None
+        self._noise = b""
 
     def _finish(self, buf: np.ndarray, r0: int, r1: int, rx_ns: int) -> None:
         run = buf[r0:r1]
@@ -111,8 +113,12 @@ class ImuStreamDecoder:
                 return
             self._reject(run, self._run_kind(run), rx_ns)  # a whole bad frame: counted now,
             self._pending = "counted"  # the bytes after it belong to the same run
-        elif not (r0 == 0 and self._pending is not None):
-            self._pending = "sync"
+        elif run[:-1].size or run[-1] != 0xAA:  # noise (a lone trailing 0xAA may yet start a sync)
+            if not (r0 == 0 and self._pending is not None):
+                self._pending, self._noise = "sync", b""
+            if self._pending == "sync" and len(self._noise) < _KEEP_BYTES:
+                noise = run[:-1] if run[-1] == 0xAA else run
+                self._noise += noise[: _KEEP_BYTES - len(self._noise)].tobytes()
         self._buf = run[-1:].copy() if run[-1] == 0xAA else np.zeros(0, np.uint8)
 
     @staticmethod

@@ -30,6 +30,7 @@ DUT_OUTPUT_MESSAGES = ("NAV_SOLUTION", "NAV_QUALITY", "DUT_READY")
 #: What the bench sends (ICD 2.1).
 BENCH_MESSAGES = ("BENCH_TIME", "BENCH_EPOCH", "BENCH_CMD", "ODOMETER", "DRIVER_INPUT", "DOPPLER")
 _KEEP_PER_KIND = 64  # sequence-labelled frames kept per kind and batch (all are counted)
+_RECENT = 1024  # NAV_SOLUTIONs remembered for pairing NAV_QUALITY frames
 
 
 class _CanReceiver:
@@ -105,7 +106,8 @@ class NavReceiver(_CanReceiver):
 
     def __init__(self, tally: Tally | None = None):
         super().__init__(DUT_OUTPUT_MESSAGES, tally)
-        self._epochs: dict[int, int] = {}  # epoch counter -> time of validity of the last NAV_SOLUTION
+        self._recent_t = np.zeros(0, np.int64)  # times of validity of the last NAV_SOLUTIONs
+        self._recent_epoch = np.zeros(0, np.int64)
 
     def _label_kind(self, code: int) -> str:
         return "counter" if code in (SEQ_REPEAT, SEQ_SKIP) else SEQ_KINDS[code]
@@ -128,14 +130,20 @@ class NavReceiver(_CanReceiver):
             rx = sub.t_ns[keep]
             if c.name == "NAV_SOLUTION":
                 out.solutions = self._records(NAV_SOLUTION_DTYPE, values, rx)
-                self._epochs.update(zip(values["epoch"].tolist(), values["t_ns"].tolist(), strict=True))
+                self._recent_t = np.concatenate([self._recent_t, values["t_ns"]])[-_RECENT:]
+                self._recent_epoch = np.concatenate([self._recent_epoch, values["epoch"]])[-_RECENT:]
             elif c.name == "NAV_QUALITY":
                 out.qualities = self._records(NAV_QUALITY_DTYPE, values, rx)
             else:
                 out.ready_ns, out.ready_rx_ns = values["time_ns"], rx
-        if out.qualities.size:  # NAV_QUALITY after its NAV_SOLUTION (same batch or earlier)
-            want = np.array([self._epochs.get(e, -1) for e in out.qualities["epoch"].tolist()], np.int64)
-            for i in np.flatnonzero(want != out.qualities["t_ns"]).tolist():
+        if out.qualities.size:  # each NAV_QUALITY belongs to a NAV_SOLUTION of the same time and epoch
+            paired = np.zeros(out.qualities.size, bool)
+            if self._recent_t.size:
+                order = np.argsort(self._recent_t, kind="stable")
+                times, epochs = self._recent_t[order], self._recent_epoch[order]
+                pos = np.minimum(np.searchsorted(times, out.qualities["t_ns"]), times.size - 1)
+                paired = (times[pos] == out.qualities["t_ns"]) & (epochs[pos] == out.qualities["epoch"])
+            for i in np.flatnonzero(~paired).tolist():
                 q = out.qualities[i]
                 self.tally.reject(
                     int(q["rx_ns"]),

@@ -26,6 +26,7 @@ import numpy as np
 
 __all__ = ["uart_receive", "line_bits"]
 
+
 def _framing(framing: str) -> tuple[int, str, float]:
     text = framing.strip().upper()
     data, parity, stop = int(text[0]), text[1], float(text[2:])
