@@ -40,21 +40,13 @@ if TYPE_CHECKING:
     from bench.acceptance.judge import CaseResult, RunResult
     from bench.acceptance.suite import SuiteOptions
 
-__all__ = ["BenchMarginalWarning", "AcceptanceFailedError", "BenchJudgementError", "Bench"]
+__all__ = ["BenchMarginalWarning", "Bench"]
 
 _RESULTS = pytest.StashKey[list]()
 
 
 class BenchMarginalWarning(UserWarning):
     """A case passed, but a criterion sits inside its marginal band."""
-
-
-class AcceptanceFailedError(AssertionError):
-    """The DUT missed a criterion (FAIL)."""
-
-
-class BenchJudgementError(Exception):
-    """The bench could not judge the case (ERROR)."""
 
 
 # -- options, markers ----------------------------------------------------------------------
@@ -164,13 +156,10 @@ class CaseLoadError(pytest.Item):
         self.error = error
 
     def setup(self) -> None:
-        raise BenchJudgementError(f"configuration error: {self.error}")
+        pytest.fail(f"configuration error: {self.error}", pytrace=False)  # in setup: an error
 
     def runtest(self) -> None:  # pragma: no cover - setup always raises
         raise AssertionError("unreachable")
-
-    def repr_failure(self, excinfo, style=None):  # type: ignore[override]
-        return str(excinfo.value)
 
     def reportinfo(self):
         return self.path, None, f"acceptance case file {self.path.name}"
@@ -195,14 +184,14 @@ class CaseItem(pytest.Item):
             label = cr.criterion.id + (f"[{cr.variant}]" if cr.variant else "")
             self.user_properties.append((f"criterion {label}", f"{cr.verdict}: {_value_text(cr)}"))
         if self.result.verdict is Verdict.ERROR:
-            raise BenchJudgementError(self._table())
+            pytest.fail(self._table(), pytrace=False)  # raised in setup: reported as an error
 
     def runtest(self) -> None:
         from bench.acceptance.verdict import Verdict
 
         assert self.result is not None
         if self.result.verdict is Verdict.FAIL:
-            raise AcceptanceFailedError(self._table())
+            pytest.fail(self._table(), pytrace=False)
         if self.result.verdict is Verdict.MARGINAL:
             marginal = [cr.criterion.id for cr in self.result.criteria if cr.verdict is Verdict.MARGINAL]
             warnings.warn(BenchMarginalWarning(f"{self.case.id}: marginal: {', '.join(marginal)}"), stacklevel=1)
@@ -212,11 +201,6 @@ class CaseItem(pytest.Item):
 
         assert self.result is not None
         return f"{self.case.id}: {self.result.verdict}\n{text_table([self.result])}"
-
-    def repr_failure(self, excinfo, style=None):  # type: ignore[override]
-        if isinstance(excinfo.value, (AcceptanceFailedError, BenchJudgementError)):
-            return str(excinfo.value)
-        return super().repr_failure(excinfo, style=style)
 
     def reportinfo(self):
         return self.path, None, f"acceptance case {self.case.id}: {self.case.title}"

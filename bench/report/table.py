@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from bench.acceptance.judge import CaseResult
 from bench.report.results import criterion_json
 
-__all__ = ["summary_rows", "text_table", "markdown_table", "case_lines"]
+__all__ = ["summary_rows", "text_table", "markdown_table", "case_lines", "reason_lines"]
 
 HEADER = ("case", "variant", "criterion", "requirement", "metric / window", "value", "limit", "paper", "verdict")
 
@@ -67,7 +67,18 @@ def text_table(cases: Sequence[CaseResult], width: int = 40) -> str:
         lines.append("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip())
         if k == 0:
             lines.append("  ".join("-" * w for w in widths))
-    return "\n".join([*lines, "", *case_lines(cases)])
+    return "\n".join([*lines, "", *case_lines(cases), *reason_lines(cases)])
+
+
+def reason_lines(cases: Sequence[CaseResult]) -> list[str]:
+    """Why criteria were not a plain pass, one line each (empty when all passed plainly)."""
+    out = []
+    for cr in cases:
+        for res in cr.criteria:
+            if res.aggregate.reason and res.verdict.value in ("FAIL", "ERROR"):
+                label = res.criterion.id + (f"[{res.variant}]" if res.variant else "")
+                out.append(f"  {cr.case_id} {label}: {res.verdict}: {res.aggregate.reason}")
+    return out
 
 
 def case_lines(cases: Sequence[CaseResult]) -> list[str]:

@@ -87,7 +87,9 @@ def select(errors: NavErrors, window: Window) -> np.ndarray:
     :class:`DutDataError` when there are epochs but the DUT flagged all of them invalid.
     """
     if window.empty:
-        raise NoDataError(f"window {window.spec.name!r} ({window.spec.describe()}) selects no time in this run")
+        what = window.spec.describe()
+        named = f"{window.spec.name!r} ({what})" if window.spec.name != what else repr(what)
+        raise NoDataError(f"window {named} selects no time in this run")
     in_w = window.mask(errors.t_ns) & errors.covered
     if not np.any(in_w):
         raise NoDataError(f"no DUT epoch in window {window.text()}")
