@@ -136,6 +136,7 @@ class TestCase:
     scenario: ScenarioRef
     sensors: Mapping[str, SensorSet]
     faults: FaultSchedule
+    fault_files: tuple[str, ...]
     commands: tuple[Command, ...]
     dut: DutSpec
     clock: ClockSpec

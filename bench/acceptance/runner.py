@@ -158,6 +158,10 @@ def case_attachments(case: TestCase) -> list[tuple[str, bytes, str]]:
     for p in paths:
         if p is not None and p.is_file():
             out.append((f"scenario/{p.name}", p.read_bytes(), "application/toml"))
+    for name in case.fault_files:
+        p = ref.resolve(name)
+        if p is not None and p.is_file():
+            out.append((f"faults/{p.name}", p.read_bytes(), "application/toml"))
     return out
 
 

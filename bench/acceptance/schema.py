@@ -29,7 +29,7 @@ from bench.acceptance.case import (
 from bench.acceptance.criteria import AGGREGATES, COMPARATORS, Criterion, Limit, MonteCarlo
 from bench.acceptance.tomlcheck import Table, type_name
 from bench.errors import ConfigError
-from bench.faults.schedule import parse_schedule
+from bench.faults.schedule import FaultSchedule, parse_schedule
 from bench.scenario.motion import GNSS_FLAGS, SEGMENT_KINDS
 from bench.scoring.faults import FLAGS, FaultSettings, target_bit
 from bench.scoring.frameswitch import SwitchSettings
@@ -39,7 +39,19 @@ from bench.units import quantity
 
 __all__ = ["build_case", "SENSORS", "register_sensor_validator", "LINK_KEYS", "COMMAND_PLACEHOLDERS"]
 
-TOP_KEYS = ("case", "scenario", "sensors", "fault", "command", "dut", "clock", "run", "scoring", "criterion")
+TOP_KEYS = (
+    "case",
+    "scenario",
+    "sensors",
+    "fault",
+    "fault_files",
+    "command",
+    "dut",
+    "clock",
+    "run",
+    "scoring",
+    "criterion",
+)
 SENSORS = ("imu", "doppler", "odometer", "bds", "driver")
 COMMANDS = {"grid": 1, "geographic": 2, "reset": 3}
 COMMAND_PLACEHOLDERS = ("can_interface", "can_channel", "imu_port", "gnss_port", "config")
@@ -85,6 +97,9 @@ def build_case(
     sensors = _sensors(top.table("sensors"), check_files)
     _load_fault_kinds()
     faults = parse_schedule(top.raw("fault"), file=file, key="fault")
+    fault_files = top.str_list("fault_files", allow_single=False)
+    if fault_files and check_files:
+        faults = _fault_files(top, fault_files, faults, base)
     commands = tuple(_command(t) for t in top.tables("command"))
     dut = _dut(top.table("dut", required=True), base, check_files)  # type: ignore[arg-type]
     clock = _clock(top.table("clock"))
@@ -105,6 +120,7 @@ def build_case(
         scenario=scenario,
         sensors=sensors,
         faults=faults,
+        fault_files=tuple(fault_files),
         commands=commands,
         dut=dut,
         clock=clock,
@@ -211,6 +227,25 @@ def _load_fault_kinds() -> None:
     for mod in ("bench.faults.sensor", "bench.faults.wire"):
         if importlib.util.find_spec(mod) is not None:
             importlib.import_module(mod)
+
+
+def _fault_files(top: Table, names: list[str], inline: FaultSchedule, base: Path | None) -> FaultSchedule:
+    """Inline windows, then those of each fault file (``[[fault]]`` tables, numbered on)."""
+    from bench.scenario.loader import read_toml
+
+    windows = list(inline)
+    for i, name in enumerate(names):
+        p = Path(name)
+        if not p.is_absolute() and base is not None:
+            p = base / p
+        if not p.exists():
+            raise top.error(f"fault_files[{i}]", f"file not found: {p}")
+        doc = read_toml(p)
+        for k in doc:
+            if k not in ("fault", "description", "reference"):
+                raise ConfigError(f"unknown key {k!r}; expected [[fault]] tables", file=str(p), key=k)
+        windows += list(parse_schedule(doc.get("fault"), file=str(p), first_id=len(windows)))
+    return FaultSchedule(windows)
 
 
 def _command(t: Table) -> Command:
