@@ -24,8 +24,7 @@ fmus: $(FMU_MANIFEST)
 install: $(STAMP) $(FMU_MANIFEST)
 
 demo: install
-	mkdir -p reports
-	$(BIN)/bench synth S000 -o reports/S000.mcap
+	$(BIN)/bench accept test_cases/ -o reports
 
 test: install
 	$(BIN)/ruff check .
