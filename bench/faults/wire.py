@@ -34,8 +34,8 @@ baud_mismatch   serial:*                baud (integer, required: the sender's re
 :class:`WireFaultInjector` takes the time-ordered batches of outgoing frames of a run and
 returns them faulted, plus one event record (:data:`WIRE_EVENT_DTYPE`, topic
 ``/faults/wire``) per frame a fault acted on. Random choices come from one
-:func:`bench.rng.stream` per window, drawn in frame order, so the result depends on the
-seed and the schedule only, not on how the run is cut into batches.
+:func:`bench.rng.stream` per window and message (or stream), drawn in frame order, so the
+result depends on the seed and the schedule only, not on how the run is cut into batches.
 """
 
 from __future__ import annotations
@@ -81,7 +81,8 @@ class WireFaultInjector:
     schedule:
         The run's fault schedule (windows of other layers are ignored).
     seed:
-        The run seed; each window draws from ``bench.rng.stream(seed, "wire", str(id))``.
+        The run seed; window ``id`` draws from ``bench.rng.stream(seed, "wire", str(id), target)``
+        for each message or stream it acts on.
     serial_links:
         Baud and framing of each serial stream (``baud_mismatch``; default the ICD's).
 
@@ -101,7 +102,7 @@ class WireFaultInjector:
         self.windows = wire_windows(schedule)
         self.seed = seed
         self.serial_links = dict(SERIAL_LINKS if serial_links is None else serial_links)
-        self._rngs: dict[int, np.random.Generator] = {}
+        self._rngs: dict[tuple[int, str], np.random.Generator] = {}
         self._shift: dict[str, int] = {}  # target -> counter shift carried on
         self._frozen: dict[int, np.ndarray] = {}  # window id -> reference payload
         self._last: dict[str, np.ndarray] = {}  # target -> last original payload
@@ -112,11 +113,12 @@ class WireFaultInjector:
         self._adapters: dict[int, CanAdapter | None] = {}
 
     # ------------------------------------------------------------------ helpers
-    def rng(self, w: FaultWindow) -> np.random.Generator:
-        """The random stream of window ``w``."""
-        if w.id not in self._rngs:
-            self._rngs[w.id] = rng_stream(self.seed, "wire", str(w.id))
-        return self._rngs[w.id]
+    def rng(self, w: FaultWindow, target: str) -> np.random.Generator:
+        """The random stream of window ``w`` on message or stream ``target`` (drawn in its frame order)."""
+        key = (w.id, target)
+        if key not in self._rngs:
+            self._rngs[key] = rng_stream(self.seed, "wire", str(w.id), target)
+        return self._rngs[key]
 
     def _applies(self, w: FaultWindow, target: str) -> bool:
         if w.target == target:
@@ -184,7 +186,7 @@ class WireFaultInjector:
             if w.kind == "corrupt_crc":
                 m = (t >= w.start_ns) & (t < w.end_ns)
                 if m.any():
-                    x = corrupt_crc(adapter, rows, m, self.rng(w))
+                    x = corrupt_crc(adapter, rows, m, self.rng(w, target))
                     events.append(_events(t[m], t[m], w, can_id, x))
         if t.shape[0]:
             self._last[target] = original[-1].copy()
@@ -207,11 +209,11 @@ class WireFaultInjector:
                 events.append(_events(t[m], -1, w, can_id, 0.0))
             elif w.kind == "drop":
                 lost = np.zeros_like(m)
-                lost[m] = self.rng(w).random(int(m.sum())) < w.params["probability"]
+                lost[m] = self.rng(w, target).random(int(m.sum())) < w.params["probability"]
                 keep &= ~lost
                 events.append(_events(t[lost], -1, w, can_id, 0.0))
             elif w.kind == "delay":
-                jitter = self.rng(w).random(int(m.sum())) * w.params["jitter"] if w.params["jitter"] else 0.0
+                jitter = self.rng(w, target).random(int(m.sum())) * w.params["jitter"] if w.params["jitter"] else 0.0
                 extra_delay[m] += np.rint((w.params["delay"] + jitter) * 1e9).astype(np.int64)
         out = t + extra_delay
         last = self._fifo.get(target)

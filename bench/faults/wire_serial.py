@@ -71,7 +71,7 @@ def _bursts(inj: WireFaultInjector, stream: str, w, limit: int) -> list[tuple[in
         t = w.start_ns + k * every
         if t >= w.end_ns or t > limit or (k > 0 and every == 0):
             break
-        rng = inj.rng(w)
+        rng = inj.rng(w, f"serial:{stream}")
         forbidden = FRAME_START.get(stream)
         raw = rng.integers(0, 255 if forbidden is not None else 256, w.params["length"])
         if forbidden is not None:
@@ -117,10 +117,10 @@ def apply_serial(
             values = np.zeros(m.size)
             for j, i in enumerate(m.tolist()):
                 if w.kind == "truncate":
-                    chunks[i] = _truncate(chunks[i], stream, w.params["keep"], inj.rng(w))
+                    chunks[i] = _truncate(chunks[i], stream, w.params["keep"], inj.rng(w, f"serial:{stream}"))
                     values[j] = len(chunks[i])
                 elif w.kind == "bad_checksum":
-                    chunks[i], values[j] = _bad_checksum(chunks[i], inj.rng(w))
+                    chunks[i], values[j] = _bad_checksum(chunks[i], inj.rng(w, f"serial:{stream}"))
                 else:
                     baud, framing = inj.serial_links.get(stream, (w.params["baud"], "8N1"))
                     chunks[i] = uart_receive(chunks[i], w.params["baud"], baud, framing)
@@ -133,9 +133,15 @@ def apply_serial(
         else:
             if chunks is None:
                 chunks = [c.data for c in batch.chunks()]
-            items = [(int(out[i]), chunks[i]) for i in np.flatnonzero(keep).tolist()]
+            extra: dict[int, list[int]] = {}  # source chunk -> times of its copies
             for src, t_copy in copies:
-                items += [(int(tc), chunks[i]) for i, tc in zip(src.tolist(), t_copy.tolist(), strict=True)]
+                for i, tc in zip(src.tolist(), t_copy.tolist(), strict=True):
+                    extra.setdefault(i, []).append(int(tc))
+            items = []  # each copy right after its original (the sort below is stable)
+            for i in np.flatnonzero(keep | np.isin(np.arange(len(chunks)), list(extra))).tolist():
+                if keep[i]:
+                    items.append((int(out[i]), chunks[i]))
+                items += [(tc, chunks[i]) for tc in extra.get(i, [])]
             pieces.append(_from_items(items))
         for w in wins:
             bursts = _bursts(inj, stream, w, limit) if w.kind == "garbage" and limit is not None else []

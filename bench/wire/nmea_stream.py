@@ -10,8 +10,8 @@ cut sentence never swallows the next one. Bytes outside sentences form ``sync`` 
 Epoch assembly: sentences with the same UTC time field belong to one epoch (VTG, which
 has no time, to the epoch in progress). An epoch closes at its ZDA or when a sentence of
 another time arrives; each ICD sentence it lacks counts as ``missing``, and a sentence
-identical to one already in the epoch as ``duplicate``. When the UTC of bench time zero
-is known (BENCH_EPOCH), each epoch gets its bench time and, with a tolerance, a ``late``
+identical to one already in the epoch (or the epoch just closed) as ``duplicate``. When the UTC
+of bench time zero is known (BENCH_EPOCH), each epoch gets its bench time and, with a tolerance, a ``late``
 check of arrival minus measurement time.
 """
 
@@ -78,6 +78,7 @@ class NmeaStreamDecoder:
         self._date: datetime.date | None = None
         self._last_tod: int | None = None
         self._out: list[tuple] = []
+        self._last_lines: dict[str, bytes] = {}  # sentences of the last epoch closed
 
     # ------------------------------------------------------------------ framing
     def feed(self, data: bytes, rx_ns: int = 0) -> np.ndarray:
@@ -136,13 +137,12 @@ class NmeaStreamDecoder:
         self.sentences += 1
         tod = values.get("tod_ns")
         ep = self._epoch
-        if ep is not None and kind in ep.lines:
-            if ep.lines[kind] == line:
-                self.tally.reject(rx_ns, self.stream, "duplicate", line, f"{kind} twice in an epoch")
-                return
-            self._close(rx_ns)
-            ep = None
-        elif ep is not None and tod is not None and ep.tod_ns is not None and tod != ep.tod_ns:
+        if (ep is not None and ep.lines.get(kind) == line) or (ep is None and self._last_lines.get(kind) == line):
+            self.tally.reject(rx_ns, self.stream, "duplicate", line, f"{kind} sent twice")
+            return
+        if (ep is not None and kind in ep.lines) or (
+            ep is not None and tod is not None and ep.tod_ns is not None and tod != ep.tod_ns
+        ):
             self._close(rx_ns)
             ep = None
         if ep is None:
@@ -160,6 +160,7 @@ class NmeaStreamDecoder:
         ep, self._epoch = self._epoch, None
         if ep is None:
             return
+        self._last_lines = ep.lines
         missing = [k for k in SENTENCES if k not in ep.lines]
         if missing:
             self.tally.count("missing", len(missing))
