@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import queue
 import select
 import termios
 import time
@@ -269,7 +270,7 @@ class PySerialLink(SerialLink):
     def _write(self, data: bytes, timeout: float) -> None:
         try:
             self.port.write(data)
-        except serial.SerialTimeoutException as exc:
+        except (serial.SerialTimeoutException, queue.Full) as exc:  # loop:// raises queue.Full
             raise LinkError(f"{self!r}: the far end took no bytes for {timeout:g} s") from exc
         except serial.SerialException as exc:
             raise LinkError(f"{self!r}: write failed: {exc}") from exc
