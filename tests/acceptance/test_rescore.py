@@ -191,3 +191,18 @@ def test_results_json_is_strict_json(live):
     _, _, result = live
     text = json.dumps(results_json([result]), allow_nan=False)
     assert "NaN" not in text and "Infinity" not in text
+
+
+def test_a_reference_case_runs_end_to_end(tmp_path):
+    from bench import paths
+
+    case = paths.test_cases_dir() / "S003b_frame_switch_commanded.toml"
+    out = tmp_path / "reports"
+    assert cli(["accept", str(case), "-o", str(out), "--seed", "1", "-q", "--no-plots"]) == 0
+    doc = json.loads((out / "results.json").read_text())
+    (c,) = doc["cases"]
+    assert c["verdict"] in ("PASS", "MARGINAL")
+    assert {r["variant"] for r in c["runs"]} == {"with_conversion", "without_conversion"}
+    gain = next(x for x in c["criteria"] if x["id"] == "GAIN")
+    assert gain["paper"].startswith("horizontal position accuracy about 29 %")
+    assert 0.0 < gain["value"] <= 0.71
