@@ -15,7 +15,8 @@ Each case file is one test. Its runs happen in the test's setup; verdicts map to
 The case's requirement ids become ``requirement`` markers and JUnit properties
 (``--junitxml``). Options: ``--bench-clock``, ``--bench-seed`` (repeatable),
 ``--bench-runs``, ``--bench-out`` (default ``reports/pytest``). Results of the session's
-cases are written there as ``bench accept`` writes them.
+cases are written there as ``bench accept`` writes them (under ``pytest-xdist``, each
+worker into its own subfolder).
 
 Fixtures for hand-written tests: ``bench`` (load, run, score, accept), ``bench_case``
 (the case named by ``@pytest.mark.bench_case("path.toml")``), ``bench_recording`` (one
@@ -127,7 +128,9 @@ def pytest_sessionfinish(session: pytest.Session) -> None:
         return
     from bench.report.outputs import write_reports
 
-    write_reports(results, _options(session.config).out_dir, {"runner": "pytest"}, plots=False)
+    out = Path(_options(session.config).out_dir)
+    worker = getattr(session.config, "workerinput", {}).get("workerid")  # pytest-xdist
+    write_reports(results, out / worker if worker else out, {"runner": "pytest", "worker": worker}, plots=False)
 
 
 # -- collection ----------------------------------------------------------------------------
