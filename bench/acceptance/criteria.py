@@ -229,6 +229,10 @@ def aggregate_runs(criterion: Criterion, runs: Sequence[RunValue]) -> Aggregate:
         return Aggregate(v, verdict, margin, reason)
     if mc.mode == "pass_runs":
         need = int(mc.pass_runs or 0)
+        if len(runs) < need:
+            return Aggregate(
+                math.nan, Verdict.ERROR, math.nan, f"{len(runs)} runs cannot show {need} passing runs; run more seeds"
+            )
         ok = [r for r in runs if r.verdict.passed]
         text = f"{len(ok)} of {len(runs)} runs met the limit, {need} required"
         ranked = sorted(measured, key=lambda v: -judge_value(criterion.limit, 0.0, v)[1])

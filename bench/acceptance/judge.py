@@ -13,7 +13,7 @@ so ``bench score`` reproduces a live verdict bit for bit.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -98,7 +98,10 @@ def score_run(run: RunData, case: TestCase) -> RunResult:
         seed = int(run.run_start.get("seed", "0"))
     except ValueError:
         seed = 0
-    scorer = Scorer(run, case.scoring)
+    # the clock the run really used (a command line may have overridden the case's)
+    mode = run.run_start.get("clock_mode") or case.clock.mode
+    budget = case.clock.budget_ns if mode == "realtime" else None
+    scorer = Scorer(run, replace(case.scoring, budget_ns=budget))
     integ = scorer.integrity()
     result = RunResult(str(run.path), case.id, variant, seed, Verdict.PASS, integ.bench, integ.dut, timing=integ.timing)
     for c in case.criteria:

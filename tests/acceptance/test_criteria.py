@@ -97,6 +97,8 @@ def test_pass_runs_k_of_n():
     assert a.verdict is F and a.value == 20.0  # the 9th best run
     runs = [*_runs([1.0] * 8 + [20.0]), RunValue(9, math.nan, E, "lost link")]
     assert aggregate_runs(c, runs).verdict is E  # the unjudged run could have decided it
+    a = aggregate_runs(c, _runs([1.0] * 3))  # --seed 1 and the like: too few runs to judge
+    assert a.verdict is E and "3 runs cannot show 9 passing runs" in a.reason
 
 
 def test_order_statistic_bound_is_the_binomial_one():

@@ -206,3 +206,30 @@ def test_a_reference_case_runs_end_to_end(tmp_path):
     gain = next(x for x in c["criteria"] if x["id"] == "GAIN")
     assert gain["paper"].startswith("horizontal position accuracy about 29 %")
     assert 0.0 < gain["value"] <= 0.71
+
+
+@pytest.mark.parametrize(("mode", "verdict"), [("realtime", Verdict.ERROR), ("lockstep", Verdict.PASS)])
+def test_timing_budget_applies_to_the_clock_the_run_used(make_case, mode, verdict):
+    import numpy as np
+
+    from bench.acceptance.synthetic import case_trajectory
+    from tests.scoring.helpers import nav_of, quality_of, truth_of, write_recording
+
+    text = base_case().replace("[run]", '[clock]\nmode = "lockstep"\nbudget = "1 ms"\n\n[run]')
+    case = load_case(make_case(text))
+    traj, _, _ = case_trajectory(case)
+    truth = truth_of(traj)
+    nav = nav_of(traj, truth["t_ns"], pos_enu=(3.0, 4.0, 0.0))
+    timing = np.zeros(10, dtype=[("t_ns", "<i8"), ("lateness_ns", "<i8")])
+    timing["lateness_ns"][3] = 2_000_000  # one step 2 ms late
+    rec = write_recording(
+        case.path.parent / f"{mode}.mcap",
+        truth=truth,
+        nav=nav,
+        quality=quality_of(nav),
+        timing=timing,
+        run_start={"case": "T1", "seed": "1", "clock_mode": mode},
+        attachments={"case/case.toml": text.encode()},
+    )
+    _, result = score_recording(rec)
+    assert result.verdict is verdict
