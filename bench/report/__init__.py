@@ -1,1 +1,4 @@
-"""report."""
+"""Reports of acceptance runs: results JSON, JUnit XML, summary tables, plots.
+
+See :mod:`~bench.report.outputs` for what ``bench accept`` writes.
+"""
