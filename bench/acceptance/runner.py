@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import platform
 import subprocess
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from importlib import import_module
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -57,6 +57,7 @@ __all__ = [
     "run_start_metadata",
     "case_attachments",
     "scenario_file",
+    "sensor_tables",
     "git_commit",
     "ENTRY_POINT_GROUP",
 ]
@@ -162,6 +163,23 @@ def case_attachments(case: TestCase) -> list[tuple[str, bytes, str]]:
         p = ref.resolve(name)
         if p is not None and p.is_file():
             out.append((f"faults/{p.name}", p.read_bytes(), "application/toml"))
+    return out
+
+
+def sensor_tables(case: TestCase, scenario_doc: Mapping[str, Any]) -> dict[str, dict[str, Any]]:
+    """The sensor tables a run builds its sensors from: the scenario's own (``[imu]``,
+    ``[doppler]``, ``[odometer]``, ``[bds]``, ``[driver]``) with the case's ``[sensors]``
+    merged over them (tables merge, values replace), ready for
+    ``bench.sensors.suite.build_suite``."""
+    from bench.acceptance.case import merge_tables
+
+    out: dict[str, dict[str, Any]] = {}
+    for name in ("imu", "doppler", "odometer", "bds", "driver"):
+        base = scenario_doc.get(name)
+        over = case.sensors.get(name)
+        if base is None and over is None:
+            continue
+        out[name] = merge_tables(base or {}, over.params if over is not None else {})
     return out
 
 

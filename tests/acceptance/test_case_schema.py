@@ -170,3 +170,18 @@ def test_every_reference_case_loads_and_cites_the_paper():
         for c in case.criteria:
             for bound in (c.limit.low, c.limit.high):
                 assert bound is None or math.isfinite(bound)
+
+
+def test_sensor_tables_merge_the_case_over_the_scenario():
+    from bench.acceptance.runner import sensor_tables
+    from bench.scenario.loader import load_scenario
+
+    case = load_case(paths.test_cases_dir() / "S001_bds_sins.toml")
+    tables = sensor_tables(case, load_scenario(paths.test_cases_dir() / "scenarios" / "S001_bds_urban.toml").doc)
+    assert tables["bds"]["model"] == "seed001" and tables["bds"]["latency"] == "80 ms"
+    assert tables["imu"] == {"grade": "navigation", "rate": "200 Hz"}
+    assert tables["odometer"] == {"model": "typical_wheeled"}
+    s002 = load_case(paths.test_cases_dir() / "S002_sins_odometer_faults.toml")
+    doc = load_scenario(paths.test_cases_dir() / "scenarios" / "S002_tracked_odometer.toml").doc
+    assert sensor_tables(s002, doc)["odometer"]["model"] == "seed002"  # the scenario's own suite
+    assert len(s002.faults) == 7 and s002.fault_files == ("faults/S002_odometer.toml",)
