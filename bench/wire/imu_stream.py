@@ -19,7 +19,7 @@ run is one event, classified by its first bytes:
                (``format`` or ``range`` if the CRC holds but a field is out of range).
 
 Accepted frames then go through the :class:`~bench.wire.sequence.SequenceChecker` of the
-frame counter (``duplicate``, ``repeat``, ``skip`` with ``lost``, ``stale``) and, when a
+frame counter (``duplicate``, ``repeat``, ``skip`` with ``lost``, and ``stale`` when asked) and, when a
 tolerance is given, a ``late`` check of arrival time minus time of validity. Duplicates
 are counted and not handed on; every other accepted frame is.
 
@@ -54,6 +54,9 @@ class ImuStreamDecoder:
 
     Parameters
     ----------
+    stale:
+        Check for frozen values (``stale``): only for data that must change every frame
+        (a noiseless IMU at rest repeats its increments exactly).
     late_ns:
         Count a frame as ``late`` when its arrival is more than this after its time of
         validity (None: no check; needs arrival times in bench time).
@@ -61,11 +64,13 @@ class ImuStreamDecoder:
         Name used in the tally's kept frames.
     """
 
-    def __init__(self, *, late_ns: int | None = None, stream: str = "serial:imu", tally: Tally | None = None):
+    def __init__(
+        self, *, stale: bool = False, late_ns: int | None = None, stream: str = "serial:imu", tally: Tally | None = None
+    ):
         self.late_ns = late_ns
         self.stream = stream
         self.tally = tally if tally is not None else Tally()
-        self.sequence = SequenceChecker(256, VALUE_MASK)
+        self.sequence = SequenceChecker(256, VALUE_MASK if stale else None)
         self.frames = 0  # frames accepted (duplicates included)
         self.bytes_in = 0
         self._buf = np.zeros(0, np.uint8)

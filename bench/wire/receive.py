@@ -160,16 +160,16 @@ class BenchTrafficDecoder(_CanReceiver):
 
     ``feed`` returns, per message name, the decoded values of the frames (duplicates
     dropped) plus ``rx_ns``. The stale check (values frozen while the counter runs) is
-    made on the messages in ``stale`` (by default BENCH_TIME and DOPPLER, whose values
-    change every frame); ``late_ns`` counts BENCH_TIME frames that arrive more than that
-    after the time they carry.
+    made on the messages in ``stale``: by default BENCH_TIME, whose time always moves;
+    add others only where their values must change every frame. ``late_ns`` counts
+    BENCH_TIME frames that arrive more than that after the time they carry.
     """
 
     def __init__(
         self,
         *,
         tally: Tally | None = None,
-        stale: tuple[str, ...] = ("BENCH_TIME", "DOPPLER"),
+        stale: tuple[str, ...] = ("BENCH_TIME",),
         late_ns: int | None = None,
     ):
         super().__init__(BENCH_MESSAGES, tally, stale)

@@ -189,7 +189,7 @@ def test_can_decoder_counts_every_can_fault_kind():
     traffic = _can_traffic()
     inj = WireFaultInjector(sched, seed=3)
     out, ev = _run_can(inj, traffic, 25)
-    dec = BenchTrafficDecoder(late_ns=3 * MS)
+    dec = BenchTrafficDecoder(late_ns=3 * MS, stale=("BENCH_TIME", "DOPPLER"))
     got = dec.feed(out)
     k = {kind: _k(ev, sched, kind) for kind in WIRE_KINDS}
     assert k["drop"] == 3 and k["silence"] == 5 + 5 + 3 and k["freeze"] == 5
@@ -242,7 +242,7 @@ def test_imu_decoder_counts_every_serial_fault_kind():
     k = {kind: _k(ev, sched, kind) for kind in WIRE_KINDS}
     baud_ids = [w.id for w in sched if w.kind == "baud_mismatch"]
     k_bad_baud = int(np.sum(ev["fault_id"] == baud_ids[0]))
-    dec = ImuStreamDecoder(late_ns=3 * MS)
+    dec = ImuStreamDecoder(late_ns=3 * MS, stale=True)
     samples = [dec.feed(c.data, c.t_ns) for c in out.chunks()]
     dec.flush()
     samples = np.concatenate(samples)

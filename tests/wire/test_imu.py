@@ -212,7 +212,7 @@ def test_sequence_labels_and_late_frames():
     imu.set_counters(repeat[None], [5])
     late = frames[8].copy()
     seq = [frames[0], frames[1], frames[3], stale, frames[5], repeat, frames[7], late, frames[9]]
-    dec = ImuStreamDecoder(late_ns=2_000_000)
+    dec = ImuStreamDecoder(late_ns=2_000_000, stale=True)
     rx = [int(f.view(imu.FRAME_DTYPE)["time_us"][0]) * 1000 + 1000 for f in seq]
     rx[7] += 5_000_000
     for f, r in zip(seq, rx, strict=True):
