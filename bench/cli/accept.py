@@ -18,7 +18,7 @@ import time
 from contextlib import ExitStack
 from pathlib import Path
 
-from bench.cli.main import EXIT_ERROR, EXIT_FAIL, EXIT_OK, EXIT_USAGE
+from bench.cli.app import EXIT_ERROR, EXIT_FAIL, EXIT_OK, EXIT_USAGE
 from bench.cli.progress import progress_bar
 
 __all__ = ["register", "exit_code"]

@@ -11,7 +11,7 @@ from bench.acceptance.case import load_case
 from bench.acceptance.judge import score_recording
 from bench.acceptance.suite import SuiteOptions, run_case
 from bench.acceptance.verdict import Verdict
-from bench.cli.main import run as cli
+from bench.cli.app import run as cli
 from bench.cli.score import score_files
 from bench.report.results import case_json, results_json, run_json
 from tests.acceptance.conftest import base_case

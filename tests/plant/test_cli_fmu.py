@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import shutil
 
-from bench.cli.main import run
+from bench.cli.app import run
 from bench.paths import models_dir
 from tests.plant.conftest import DATA
 
