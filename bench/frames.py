@@ -56,6 +56,16 @@ class SerialChunk:
     data: bytes
 
 
+def _column(value, dtype, n: int) -> np.ndarray:
+    """(n,) array of ``dtype`` from an array or one value for all."""
+    if np.ndim(value) == 0:
+        return np.full(n, value, dtype)
+    out = np.asarray(value, dtype=dtype)
+    if out.shape != (n,):
+        raise ValueError(f"expected {n} values, found shape {out.shape}")
+    return out.copy()
+
+
 class CanBatch:
     """Many CAN frames in columns.
 
@@ -78,17 +88,17 @@ class CanBatch:
     def __init__(self, t_ns, can_id, data, length=None, fd=None):
         self.t_ns = np.asarray(t_ns, dtype=np.int64).reshape(-1)
         n = self.t_ns.shape[0]
-        self.can_id = np.broadcast_to(np.asarray(can_id, dtype=np.uint32), (n,)).copy()
+        self.can_id = _column(can_id, np.uint32, n)
         data = np.asarray(data, dtype=np.uint8)
         if data.ndim != 2 or data.shape[0] != n:
             raise ValueError(f"data must be (N, W) uint8 with N = {n}, found shape {data.shape}")
         self.data = data
         if length is None:
             length = data.shape[1]
-        self.length = np.broadcast_to(np.asarray(length, dtype=np.uint8), (n,)).copy()
+        self.length = _column(length, np.uint8, n)
         if n and int(self.length.max()) > data.shape[1]:
             raise ValueError(f"length up to {int(self.length.max())} does not fit payload width {data.shape[1]}")
-        self.fd = np.broadcast_to(np.asarray(False if fd is None else fd, dtype=bool), (n,)).copy()
+        self.fd = _column(False if fd is None else fd, bool, n)
 
     def __len__(self) -> int:
         return int(self.t_ns.shape[0])

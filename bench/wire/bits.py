@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -64,17 +65,46 @@ class Field:
         return out
 
 
+@lru_cache(maxsize=256)
+def _word_layout(fields: tuple[Field, ...], length: int) -> tuple[tuple[Field, int, int], ...] | None:
+    """(field, 64-bit word, shift) of each field if no field crosses a word boundary."""
+    if length % 8:
+        return None
+    out = []
+    for f in fields:
+        word, shift = divmod(f.start, 64)
+        if shift + f.length > 64 or (word + 1) * 8 > length:
+            return None
+        out.append((f, word, shift))
+    return tuple(out)
+
+
+def _as_u64(value) -> np.ndarray:
+    v = np.asarray(value)
+    return v.astype(np.int64, copy=False).view(np.uint64) if v.dtype.kind in "ib" else v.astype(np.uint64)
+
+
 def pack(fields: Sequence[Field], raw: Mapping[str, np.ndarray], out: np.ndarray) -> np.ndarray:
     """Write the raw values of ``fields`` into ``out`` (N, L) uint8 (OR-ed in; ``out`` starts zeroed).
 
     ``raw[name]`` is an (N,) integer array (or scalar) in the field's range; values are
     masked to the field's width, so a negative value of a signed field lands in two's
     complement. Range checking is the caller's job (codecs raise ``CodecError("range")``).
+    Payloads of whole 64-bit words whose fields stay inside a word (every ICD message)
+    are packed a word at a time; others a byte at a time.
     """
     n = out.shape[0]
+    layout = _word_layout(tuple(fields), out.shape[1]) if out.flags.c_contiguous else None
+    if layout is not None:
+        words = out.view("<u8")
+        for f, word, shift in layout:
+            u = _as_u64(raw[f.name])
+            if f.length < 64:
+                u = u & np.uint64((1 << f.length) - 1)
+            words[:, word] |= u << np.uint64(shift) if shift else u
+        return out
     for f in fields:
-        value = np.broadcast_to(np.asarray(raw[f.name]), (n,))
-        u = value.astype(np.int64, copy=False).view(np.uint64) if value.dtype.kind == "i" else value.astype(np.uint64)
+        u = np.broadcast_to(_as_u64(raw[f.name]), (n,))
         for byte, offset, shift, nbits in f.spans():
             part = (u >> np.uint64(shift)) & np.uint64((1 << nbits) - 1)
             if offset:
@@ -83,9 +113,27 @@ def pack(fields: Sequence[Field], raw: Mapping[str, np.ndarray], out: np.ndarray
     return out
 
 
+def _signed(f: Field, u: np.ndarray) -> np.ndarray:
+    if f.signed:
+        if f.length < 64:
+            sign = np.uint64(1 << (f.length - 1))
+            u = (u ^ sign) - sign  # sign-extend in modular arithmetic
+        return u.view(np.int64)
+    return u if f.length == 64 else u.view(np.int64)
+
+
 def unpack(fields: Sequence[Field], data: np.ndarray) -> dict[str, np.ndarray]:
     """Read the raw values of ``fields`` from ``data`` (N, L) uint8 -> {name: (N,) int64 or uint64}."""
     result: dict[str, np.ndarray] = {}
+    layout = _word_layout(tuple(fields), data.shape[1])
+    if layout is not None:
+        words = np.ascontiguousarray(data).view("<u8")
+        for f, word, shift in layout:
+            u = words[:, word] >> np.uint64(shift) if shift else words[:, word].copy()
+            if f.length < 64:
+                u &= np.uint64((1 << f.length) - 1)
+            result[f.name] = _signed(f, u)
+        return result
     for f in fields:
         u = np.zeros(data.shape[0], np.uint64)
         for byte, offset, shift, nbits in f.spans():
@@ -96,15 +144,7 @@ def unpack(fields: Sequence[Field], data: np.ndarray) -> dict[str, np.ndarray]:
             if shift:
                 part = part << np.uint64(shift)
             u |= part
-        if f.signed:
-            if f.length < 64:
-                sign = np.uint64(1 << (f.length - 1))
-                u = (u ^ sign) - sign  # sign-extend in modular arithmetic
-            result[f.name] = u.view(np.int64)
-        elif f.length == 64:
-            result[f.name] = u
-        else:
-            result[f.name] = u.view(np.int64)
+        result[f.name] = _signed(f, u)
     return result
 
 

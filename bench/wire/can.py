@@ -241,12 +241,8 @@ class CanCodec:
         for q in self.quantities:
             value = np.asarray(values[q.name])
             shape = (n, len(q.signals)) if (q.kind == "float" and len(q.signals) > 1) else (n,)
-            try:
-                value = np.broadcast_to(value, shape)
-            except ValueError:
-                raise CodecError(
-                    "length", f"{self.name}.{q.name}: expected shape {shape}, found {value.shape}"
-                ) from None
+            if value.shape != shape and value.shape != shape[1:]:  # arrays per frame, or one value for all
+                raise CodecError("length", f"{self.name}.{q.name}: expected shape {shape}, found {value.shape}")
             raw.update(self._to_raw(q, value))
         data = np.zeros((n, self.length), np.uint8)
         pack(self._data_fields, raw, data)

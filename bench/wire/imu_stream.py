@@ -128,7 +128,10 @@ class ImuStreamDecoder:
 
     @staticmethod
     def _split_runs(a: int, b: int, syncs: np.ndarray) -> list[tuple[int, int]]:
-        cuts = syncs[(syncs > a) & (syncs < b)]
+        """The runs of ``[a, b)`` cut at every sync position strictly inside it."""
+        if b <= a:
+            return []
+        cuts = syncs[np.searchsorted(syncs, a, side="right") : np.searchsorted(syncs, b, side="left")]
         edges = [a, *cuts.tolist(), b]
         return [(edges[k], edges[k + 1]) for k in range(len(edges) - 1) if edges[k + 1] > edges[k]]
 
@@ -156,11 +159,11 @@ class ImuStreamDecoder:
                 accepted.append(valid[i : j + 1])
                 i = int(np.searchsorted(valid, valid[j] + FRAME_SIZE))
         starts = np.concatenate(accepted) if accepted else np.zeros(0, np.int64)
-        pos = 0
-        for a in starts.tolist():
-            for r0, r1 in self._split_runs(pos, a, syncs):
+        prev_end = np.concatenate([[0], starts[:-1] + FRAME_SIZE])
+        for i in np.flatnonzero(starts > prev_end).tolist():  # only where bad bytes lie between frames
+            for r0, r1 in self._split_runs(int(prev_end[i]), int(starts[i]), syncs):
                 self._finish(buf, r0, r1, rx_ns)
-            pos = a + FRAME_SIZE
+        pos = int(starts[-1]) + FRAME_SIZE if starts.size else 0
         tail = self._split_runs(pos, n, syncs)
         for r0, r1 in tail[:-1]:
             self._finish(buf, r0, r1, rx_ns)
@@ -174,7 +177,7 @@ class ImuStreamDecoder:
         if starts.size == 0:
             return np.zeros(0, IMU_SAMPLE_DTYPE)
         rows = buf[starts[:, None] + _OFFS]
-        samples, _ = decode_frames(rows, rx_ns)
+        samples, _ = decode_frames(rows, rx_ns, check=False)  # checked in feed
         labels, lost = self.sequence.check(samples["counter"], rows)
         self.frames += starts.size
         for code in np.unique(labels[labels > 0]).tolist():
