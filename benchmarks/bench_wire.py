@@ -152,6 +152,7 @@ def decode_s000(out: list) -> dict[str, float]:
 
 def part1(duration_s: int) -> None:
     sig = s000_signals(duration_s, np.random.default_rng(0))
+    decode_s000(encode_s000(s000_signals(2, np.random.default_rng(1)), None)[2])  # compiled kernels loaded
     print(f"\n1. S000 traffic, {duration_s} s (target for 3600 s: encode in <= 5 s)")
     print(f"  {'stream':<34} {'frames':>10} {'one call':>10} {'1 s windows':>12} {'decode (1 s)':>13}")
     t_all, n_all, _ = encode_s000(sig, None)

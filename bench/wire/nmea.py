@@ -99,19 +99,29 @@ def _latlon(values: np.ndarray, width: int, pos: str, neg: str) -> tuple[list[st
     return text, hemi
 
 
-def encode_epochs(fixes: np.ndarray, *, talker: str = "GB", at_ns=None) -> SerialBatch:
+def encode_epochs(fixes: np.ndarray, *, talker: str = "GB", at_ns=None, outage_style=None) -> SerialBatch:
     """The five sentences of every epoch of ``fixes`` (:data:`GNSS_FIX_DTYPE`) as chunks.
 
     ``at_ns`` (N,) is when each epoch's sentences are due on the link (the measurement
-    time plus the receiver latency); default the epochs' ``t_ns``. Raises
-    ``CodecError("range")`` for a latitude beyond +-90 deg, a negative sigma or a value
-    that does not fit its field.
+    time plus the receiver latency); default the epochs' ``t_ns``. ``outage_style`` (N,),
+    optional, is the receiver's behaviour in an outage per epoch (ICD 4): 0 none, 1 "no
+    fix" (sent as quality 0: RMC status V, GGA quality 0), 2 "silent" (nothing sent).
+    Raises ``CodecError("range")`` for a latitude beyond +-90 deg, a negative sigma or a
+    value that does not fit its field.
     """
     if talker not in TALKERS:
         raise CodecError("range", f"NMEA talker: expected one of {', '.join(TALKERS)}, found {talker!r}")
     fixes = np.atleast_1d(fixes)
     n = fixes.shape[0]
     at_ns = fixes["t_ns"] if at_ns is None else np.broadcast_to(np.asarray(at_ns, np.int64), (n,))
+    if outage_style is not None:
+        style = np.broadcast_to(np.asarray(outage_style), (n,))
+        if np.any((style < 0) | (style > 2)):
+            raise CodecError("range", "NMEA outage_style: expected 0 none, 1 no fix, 2 silent")
+        fixes = fixes.copy()
+        fixes["quality"][style == 1] = 0
+        fixes, at_ns = fixes[style != 2], at_ns[style != 2]
+        n = fixes.shape[0]
     if n == 0:
         return SerialBatch.empty()
     q = fixes["quality"].astype(int)

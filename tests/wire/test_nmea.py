@@ -281,3 +281,30 @@ def test_outage_sentences_and_range_errors():
         assert e.value.kind == "range"
     with pytest.raises(CodecError):
         encode_epochs(g, talker="GP")
+
+
+def test_outage_styles():
+    f = _fixes(
+        [
+            {
+                "utc_s": 1_748_736_000 + k,
+                "cs": 0,
+                "lat": 34.2,
+                "lon": 108.9,
+                "h": 380.0,
+                "ve": 1.0,
+                "vn": 2.0,
+                "s": (1.0, 2.0, 3.0),
+                "sats": 12,
+                "hdop": 0.9,
+                "quality": 1,
+            }
+            for k in range(3)
+        ]
+    )
+    lines = [c.data for c in encode_epochs(f, outage_style=[0, 1, 2]).chunks()]
+    assert len(lines) == 10  # the silent epoch sends nothing
+    assert lines[5].startswith(b"$GBRMC,000001.00,V,") and b",0,12," in lines[6]
+    assert f["quality"].tolist() == [1, 1, 1]  # the caller's records are left alone
+    with pytest.raises(CodecError):
+        encode_epochs(f, outage_style=[0, 3, 0])
