@@ -58,6 +58,7 @@ from bench.faults.wire_kinds import (
     events as _events,
 )
 from bench.faults.wire_ops import CanAdapter, corrupt_crc, edit_signal, freeze
+from bench.faults.wire_serial import apply_serial
 from bench.frames import CanBatch, SerialBatch
 from bench.rng import stream as rng_stream
 from bench.wire.can import codec_for_id
@@ -256,6 +257,7 @@ class WireFaultInjector:
                 wins = self.windows_on(target, t0, t1)
                 if not wins and not self._shift.get(target) and target not in self._fifo:
                     pieces.append(batch.take(idx))
+                    self._last[target] = batch.data[idx[-1]].copy()  # what a freeze would hold
                     continue
                 sub = batch.take(idx)
                 t = sub.t_ns
@@ -296,8 +298,6 @@ class WireFaultInjector:
     # ------------------------------------------------------------------ serial
     def serial(self, stream: str, batch: SerialBatch, until_ns: int | None = None) -> tuple[SerialBatch, np.ndarray]:
         """The chunks of serial ``stream`` (``imu``, ``gnss``) with the faults applied."""
-        from bench.faults.wire_serial import apply_serial  # the byte-level half of the injector
-
         return apply_serial(self, stream, batch, until_ns)
 
     def flush_serial(self, stream: str) -> SerialBatch:

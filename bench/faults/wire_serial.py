@@ -96,6 +96,8 @@ def apply_serial(
     wins = inj.windows_on(target, t0, max(t1, limit if limit is not None else t1))
     if not wins and not inj._shift.get(target) and target not in inj._fifo:
         pieces.append(batch)
+        if len(batch):  # what a freeze would hold
+            inj._last[target] = batch.buf[batch.offsets[-2] : batch.offsets[-1]].copy()
     else:
         if (
             stream == "imu"

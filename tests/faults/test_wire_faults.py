@@ -328,3 +328,17 @@ def test_nmea_baud_mismatch_garbles_the_epoch():
     assert sum(counts.values()) >= 1 and "late" not in counts
     fixes, got, counts, k = _gnss_run([_w("baud_mismatch", 1440, 1460, "serial:gnss", baud=117_000)])  # +1.6 %
     assert len(got) == 20 and counts == {}
+
+
+def test_freeze_holds_the_last_frame_before_the_window_whatever_the_batches():
+    traffic = _imu_traffic(1_000 * MS)
+    sched = parse_schedule([_w("freeze", 500, 520, "serial:imu")])
+    clean = ImuStreamDecoder().feed(traffic.tobytes())
+    before = clean[np.searchsorted(clean["t_ns"], 500 * MS) - 1]  # the frame at 495 ms
+    for step in (5, 20, 100, 1000):  # the window starts on a batch boundary or inside one
+        out, ev = _run_serial(WireFaultInjector(sched), "imu", traffic, step, 1_000 * MS)
+        got = ImuStreamDecoder().feed(out.tobytes())
+        on = (got["t_ns"] >= 500 * MS) & (got["t_ns"] < 520 * MS)
+        assert on.sum() == 4 and len(ev) == 4
+        np.testing.assert_array_equal(got["dtheta"][on], np.repeat(before["dtheta"][None], 4, axis=0))
+        np.testing.assert_array_equal(got["t_ns"], clean["t_ns"])  # time and counter run on
