@@ -24,10 +24,26 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["CanFrame", "SerialChunk", "CanBatch", "SerialBatch", "CAN_FD_LENGTHS", "fd_length"]
+__all__ = ["CanFrame", "SerialChunk", "CanBatch", "SerialBatch", "CAN_FD_LENGTHS", "fd_length", "parse_framing"]
 
 #: Payload lengths a CAN FD frame can have (DLC 0..15).
 CAN_FD_LENGTHS = (0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 32, 48, 64)
+
+
+_PARITIES = ("N", "E", "O", "M", "S")
+
+
+def parse_framing(framing: str) -> tuple[int, str, float]:
+    """(data bits, parity, stop bits) of a framing such as ``"8N1"``, ``"7E1"``, ``"8N1.5"``."""
+    text = framing.strip().upper()
+    if len(text) < 3 or not text[0].isdigit() or text[1] not in _PARITIES:
+        raise ValueError(
+            f"framing must look like 8N1 (data bits 5-8, parity N/E/O/M/S, stop 1/1.5/2), found {framing!r}"
+        )
+    data, parity, stop = int(text[0]), text[1], float(text[2:])
+    if not 5 <= data <= 8 or stop not in (1.0, 1.5, 2.0):
+        raise ValueError(f"framing must have 5-8 data bits and 1, 1.5 or 2 stop bits, found {framing!r}")
+    return data, parity, stop
 
 
 def fd_length(n: int) -> int:

@@ -57,7 +57,7 @@ from bench.faults.wire_kinds import (
 from bench.faults.wire_kinds import (
     events as _events,
 )
-from bench.faults.wire_ops import CanAdapter, corrupt_crc, edit_signal, freeze
+from bench.faults.wire_ops import CanAdapter, corrupt_crc, edit_signal, freeze, parse_signal
 from bench.faults.wire_serial import apply_serial
 from bench.frames import CanBatch, SerialBatch
 from bench.rng import stream as rng_stream
@@ -156,10 +156,15 @@ class WireFaultInjector:
                     ref = original[before[-1]] if before.size else self._last.get(target, original[np.argmax(m)])
                     self._frozen[w.id] = np.array(ref, np.uint8)
                 freeze(adapter, rows, m, self._frozen[w.id])
-            elif w.kind == "offset":
-                edit_signal(adapter, rows, m, w.params["signal"], lambda v, d=w.params["value"]: v + d)
-            elif w.kind == "scale":
-                edit_signal(adapter, rows, m, w.params["signal"], lambda v, k=w.params["factor"]: v * k)
+            elif w.kind in ("offset", "scale"):
+                if parse_signal(w.params["signal"])[0] not in adapter.signals():
+                    continue  # a can:* window leaves the messages without that signal alone
+                fn = (
+                    (lambda v, d=w.params["value"]: v + d)
+                    if w.kind == "offset"
+                    else (lambda v, k=w.params["factor"]: v * k)
+                )
+                edit_signal(adapter, rows, m, w.params["signal"], fn)
             else:
                 continue
             events.append(_events(t[m], t[m], w, can_id, 0.0))

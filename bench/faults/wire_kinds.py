@@ -15,7 +15,7 @@ from bench.faults.schedule import FaultSchedule, FaultWindow, ParamSpec, registe
 from bench.faults.wire_ops import CanAdapter, ImuAdapter, parse_signal
 from bench.frames import CAN_FD_LENGTHS
 from bench.topics import TopicSpec
-from bench.wire.can import codec_for_id
+from bench.wire.can import codec
 from bench.wire.dbc import load_specs
 
 __all__ = [
@@ -175,21 +175,16 @@ def wire_windows(schedule: FaultSchedule | Iterable[FaultWindow] | None) -> list
         where = f"fault {w.id} ({w.target} {w.kind})"
         if w.target.startswith("can:") and w.target != "can:*" and w.target[4:] not in names:
             raise ConfigError(f"{where}: no message {w.target[4:]!r} in the ICD; known: {', '.join(sorted(names))}")
-        if w.kind in ("offset", "scale"):
+        if w.kind in ("offset", "scale"):  # on can:* the messages that carry the signal
             name, index = parse_signal(w.params["signal"])
-            targets = (
-                [codec_for_id(s.frame_id) for s in load_specs().values()]
-                if w.target == "can:*"
-                else [None]
-                if w.target == "serial:imu"
-                else [codec_for_id(load_specs()[w.target[4:]].frame_id)]
-            )
-            for c in targets:
-                sigs = (ImuAdapter() if c is None else CanAdapter(c)).signals()
-                if w.target != "can:*" and (name not in sigs or (index is not None) != (sigs[name] > 1)):
-                    raise ConfigError(
-                        f"{where}: signal must be one of {', '.join(_sig_names(sigs))}, found {w.params['signal']!r}"
-                    )
+            if w.target == "serial:imu":
+                carriers = [ImuAdapter().signals()]
+            else:
+                msgs = sorted(names) if w.target == "can:*" else [w.target[4:]]
+                carriers = [CanAdapter(codec(m)).signals() for m in msgs]
+            if not any(name in sigs and (index is not None) == (sigs[name] > 1) for sigs in carriers):
+                known = sorted({n for sigs in carriers for n in _sig_names(sigs)})
+                raise ConfigError(f"{where}: signal must be one of {', '.join(known)}, found {w.params['signal']!r}")
         if w.kind == "wrong_dlc" and w.params["dlc"] not in CAN_FD_LENGTHS:
             raise ConfigError(f"{where}: dlc must be a CAN payload length {CAN_FD_LENGTHS}, found {w.params['dlc']}")
         if w.kind == "baud_mismatch" and w.params["baud"] <= 0:

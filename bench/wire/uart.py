@@ -24,15 +24,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from bench.frames import parse_framing
+
 __all__ = ["uart_receive", "line_bits"]
-
-
-def _framing(framing: str) -> tuple[int, str, float]:
-    text = framing.strip().upper()
-    data, parity, stop = int(text[0]), text[1], float(text[2:])
-    if not 5 <= data <= 8 or parity not in "NEOMS" or stop not in (1.0, 1.5, 2.0):
-        raise ValueError(f"framing must look like 8N1, found {framing!r}")
-    return data, parity, stop
 
 
 def _parity_bit(byte: int, data: int, parity: str) -> int:
@@ -45,7 +39,7 @@ def line_bits(data: bytes, framing: str = "8N1") -> np.ndarray:
 
     Half stop bits (1.5) are rounded up to whole bit times of the line.
     """
-    nbits, parity, stop = _framing(framing)
+    nbits, parity, stop = parse_framing(framing)
     stop_bits = int(np.ceil(stop))
     out = []
     for b in data:
@@ -60,7 +54,7 @@ def uart_receive(data: bytes, tx_baud: float, rx_baud: float, framing: str = "8N
     """The characters a receiver at ``rx_baud`` reads from ``data`` sent at ``tx_baud``."""
     if not data:
         return b""
-    nbits, parity, _stop = _framing(framing)
+    nbits, parity, _stop = parse_framing(framing)
     line = line_bits(data, framing)
     t_tx = 1.0 / tx_baud
     t_rx = 1.0 / rx_baud

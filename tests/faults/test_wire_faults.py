@@ -342,3 +342,18 @@ def test_freeze_holds_the_last_frame_before_the_window_whatever_the_batches():
         assert on.sum() == 4 and len(ev) == 4
         np.testing.assert_array_equal(got["dtheta"][on], np.repeat(before["dtheta"][None], 4, axis=0))
         np.testing.assert_array_equal(got["t_ns"], clean["t_ns"])  # time and counter run on
+
+
+def test_offset_on_every_message_acts_where_the_signal_is():
+    traffic = _can_traffic(300 * MS)
+    sched = parse_schedule([_w("offset", 100, 200, "can:*", signal="speed", value=-0.5)])
+    out, ev = _run_can(WireFaultInjector(sched), traffic, 50, 300 * MS)
+    assert set(ev["can_id"].tolist()) == {0x120, 0x130}  # ODOMETER and DOPPLER carry a speed, BENCH_TIME not
+    got, ref = BenchTrafficDecoder().feed(out), BenchTrafficDecoder().feed(traffic)
+    for name in ("ODOMETER", "DOPPLER"):
+        on = (ref[name]["rx_ns"] >= 100 * MS) & (ref[name]["rx_ns"] < 200 * MS)
+        np.testing.assert_allclose(got[name]["speed"][on], ref[name]["speed"][on] - 0.5, atol=0.006)
+        np.testing.assert_array_equal(got[name]["speed"][~on], ref[name]["speed"][~on])
+    np.testing.assert_array_equal(got["BENCH_TIME"]["time_ns"], ref["BENCH_TIME"]["time_ns"])
+    with pytest.raises(ConfigError, match="signal must be one of"):
+        WireFaultInjector(parse_schedule([_w("scale", 0, 10, "can:*", signal="altitude", factor=2.0)]))
