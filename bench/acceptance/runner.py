@@ -30,19 +30,14 @@ ships the ``synthetic`` runner; the run engine provides ``in_process`` and ``ext
 
 from __future__ import annotations
 
-import platform
-import subprocess
 from collections.abc import Callable, Mapping
 from importlib import import_module
 from importlib.metadata import entry_points
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
-import numpy as np
-
-from bench import __version__
 from bench.errors import BenchError
-from bench.paths import project_root
+from bench.runinfo import git_commit, host_metadata
 
 if TYPE_CHECKING:
     from bench.acceptance.case import TestCase
@@ -110,23 +105,6 @@ def recording_name(case: TestCase, seed: int) -> str:
     return f"{case.id}{variant}-s{seed}.mcap"
 
 
-def git_commit() -> str:
-    """Commit of the project checkout (``+dirty`` with local changes), or 'unknown'."""
-    try:
-        out = subprocess.run(
-            ["git", "-C", str(project_root()), "rev-parse", "HEAD"], capture_output=True, text=True, timeout=5
-        )
-        dirty = subprocess.run(
-            ["git", "-C", str(project_root()), "status", "--porcelain", "--untracked-files=no"],
-            capture_output=True,
-            text=True,
-            timeout=5,
-        )
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-    return (out.stdout.strip() or "unknown") + ("+dirty" if dirty.stdout.strip() else "")
-
-
 def run_start_metadata(case: TestCase, seed: int, runner: str, **extra: Any) -> dict[str, Any]:
     """The ``run_start`` record every runner writes (extend with ``extra``)."""
     return {
@@ -141,11 +119,7 @@ def run_start_metadata(case: TestCase, seed: int, runner: str, **extra: Any) -> 
         "dut_kind": case.dut.kind,
         "dut_name": case.dut.name or "",
         "requirements": list(case.requirements),
-        "bench_version": __version__,
-        "git_commit": git_commit(),
-        "host": platform.node(),
-        "python": platform.python_version(),
-        "numpy": np.__version__,
+        **host_metadata(),
         **extra,
     }
 

@@ -11,7 +11,6 @@ was put in.
 
 from __future__ import annotations
 
-import datetime as _dt
 from functools import lru_cache
 from pathlib import Path
 
@@ -30,6 +29,7 @@ from bench.acceptance.synthetic_spec import SyntheticDut
 from bench.errors import ConfigError
 from bench.faults.schedule import FAULT_JSON_SCHEMA, FAULT_TOPIC
 from bench.record.mcap_io import RecordingWriter
+from bench.runinfo import parse_epoch
 from bench.scenario.loader import Scenario, load_scenario
 from bench.scenario.records import TRUTH_TOPIC, truth_records
 from bench.scenario.trajectory import Trajectory, truth_at
@@ -38,16 +38,12 @@ from bench.topics import NAV_QUALITY_TOPIC, NAV_SOLUTION_TOPIC
 
 __all__ = ["SyntheticRunner", "case_trajectory", "epoch_ns"]
 
-DEFAULT_EPOCH = "2025-06-01T00:00:00Z"
 _BLOCK_NS = 10_000_000_000
 
 
 def epoch_ns(start_utc: str | None) -> int:
     """UTC of bench time zero, ns since 1970, from an ISO 8601 text."""
-    when = _dt.datetime.fromisoformat(str(start_utc or DEFAULT_EPOCH).replace("Z", "+00:00"))
-    if when.tzinfo is None:
-        when = when.replace(tzinfo=_dt.UTC)
-    return round(when.timestamp()) * 1_000_000_000 + when.microsecond * 1000
+    return parse_epoch(start_utc)
 
 
 @lru_cache(maxsize=4)
