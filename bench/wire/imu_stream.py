@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from bench.frames import SerialBatch
 from bench.wire.imu import (
     FRAME_SIZE,
     IMU_KINDS,
@@ -74,6 +75,9 @@ class ImuStreamDecoder:
         self.frames = 0  # frames accepted (duplicates included)
         self.bytes_in = 0
         self._buf = np.zeros(0, np.uint8)
+        self._carried = 0  # bytes of earlier reads at the front of the current buffer
+        #: End offsets (exclusive, in the bytes of the last ``feed``) of the samples it returned.
+        self.last_ends = np.zeros(0, np.int64)
         self._pending: str | None = None  # "sync": an uncounted noise run continues; "counted": a counted run does
         self._noise = b""  # first bytes of the uncounted noise run, for the record
 
@@ -140,6 +144,8 @@ class ImuStreamDecoder:
         """Decode the bytes of one read; returns the new samples (:data:`IMU_SAMPLE_DTYPE`)."""
         new = np.frombuffer(data, np.uint8)
         self.bytes_in += new.size
+        self._carried = self._buf.size
+        self.last_ends = np.zeros(0, np.int64)
         buf = np.concatenate([self._buf, new]) if self._buf.size else new.copy()
         n = buf.size
         if n == 0:
@@ -188,10 +194,22 @@ class ImuStreamDecoder:
             self.tally.count(kind, idx.size - min(idx.size, 64))
         self.tally.count("lost", int(lost.sum()))
         keep = labels != SEQ_DUPLICATE
+        self.last_ends = (starts + FRAME_SIZE - self._carried)[keep]
         if self.late_ns is not None:
             late = keep & (np.int64(rx_ns) - samples["t_ns"] > self.late_ns)
             self.tally.count("late", int(late.sum()))
         return samples[keep]
+
+    def feed_batch(self, batch: SerialBatch) -> np.ndarray:
+        """Decode a batch of received chunks in one call; each sample's ``rx_ns`` is the
+        arrival time of the chunk holding its last byte."""
+        if len(batch) == 0:
+            return np.zeros(0, IMU_SAMPLE_DTYPE)
+        samples = self.feed(batch.tobytes(), int(batch.t_ns[-1]))
+        if samples.size:
+            chunk = np.searchsorted(batch.offsets[1:], self.last_ends - 1, side="right")
+            samples["rx_ns"] = batch.t_ns[chunk]
+        return samples
 
     def flush(self, rx_ns: int = 0) -> None:
         """End of stream: count what is left as a bad run."""
