@@ -34,6 +34,7 @@ from bench.errors import RecordingError
 
 __all__ = [
     "COLUMNAR",
+    "CHUNKS",
     "RecordingWriter",
     "RecordingReader",
     "TopicInfo",
@@ -43,6 +44,9 @@ __all__ = [
 
 #: Schema and message encoding of columnar blocks.
 COLUMNAR = "bench.columnar.v1"
+#: Schema and message encoding of byte chunks (serial traffic): ``u4 n``, then ``n``
+#: little-endian ``i8`` times, ``n`` ``u4`` lengths, then the bytes of the chunks.
+CHUNKS = "bench.chunks.v1"
 PROFILE = "nav-hil-bench"
 
 
@@ -137,7 +141,37 @@ class RecordingWriter:
         self._channels[topic] = (cid, None)
         self._seq[topic] = 0
 
+    def chunks_topic(self, topic: str, schema_name: str, *, description: str = "") -> None:
+        """Declare a topic of time-stamped byte chunks (serial traffic in one direction)."""
+        if topic in self._channels:
+            return
+        key = f"{CHUNKS}:{schema_name}"
+        if key not in self._schemas:
+            schema = {"layout": "u4 n; i8[n] t_ns; u4[n] length; bytes", "description": description}
+            self._schemas[key] = self._w.register_schema(schema_name, CHUNKS, json.dumps(schema).encode())
+        cid = self._w.register_channel(topic, CHUNKS, self._schemas[key])
+        self._channels[topic] = (cid, None)
+        self._seq[topic] = 0
+
     # -- messages -------------------------------------------------------------------------
+    def write_chunks(self, topic: str, t_ns: np.ndarray, offsets: np.ndarray, buf: np.ndarray | bytes) -> None:
+        """Write chunks ``buf[offsets[i]:offsets[i+1]]`` due or received at ``t_ns[i]``."""
+        n = len(t_ns)
+        if n == 0:
+            return
+        cid, _ = self._channels[topic]
+        lengths = np.diff(np.asarray(offsets, dtype=np.int64)).astype("<u4")
+        body = np.asarray(buf, dtype=np.uint8).tobytes() if not isinstance(buf, bytes) else buf
+        data = (
+            np.uint32(n).tobytes()
+            + np.asarray(t_ns, dtype="<i8").tobytes()
+            + lengths.tobytes()
+            + body[int(offsets[0]) : int(offsets[-1])]
+        )
+        t = self.epoch_ns + int(t_ns[0])
+        self._w.add_message(cid, log_time=t, data=data, publish_time=t, sequence=self._seq[topic])
+        self._seq[topic] += 1
+
     def write_block(self, topic: str, records: np.ndarray) -> None:
         """Write a block of records (structured array of the topic's dtype)."""
         if len(records) == 0:
@@ -269,6 +303,26 @@ class RecordingReader:
         if dtype is None:
             raise RecordingError(f"{self.path}: no messages on topic {topic}")
         return np.concatenate(parts)
+
+    def read_chunks(self, topic: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """All chunks of a chunk topic: ``(t_ns, offsets, buf)`` in write order."""
+        times: list[np.ndarray] = []
+        lengths: list[np.ndarray] = []
+        bodies: list[bytes] = []
+        for _, ch, msg in self._iter([topic]):
+            if ch.message_encoding != CHUNKS:
+                raise RecordingError(f"{self.path}: topic {topic} is {ch.message_encoding}, not byte chunks")
+            data = bytes(msg.data)
+            n = int(np.frombuffer(data[:4], "<u4")[0])
+            times.append(np.frombuffer(data[4 : 4 + 8 * n], "<i8"))
+            lengths.append(np.frombuffer(data[4 + 8 * n : 4 + 12 * n], "<u4").astype(np.int64))
+            bodies.append(data[4 + 12 * n :])
+        if not times:
+            return np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros(0, np.uint8)
+        lens = np.concatenate(lengths)
+        offsets = np.zeros(len(lens) + 1, np.int64)
+        np.cumsum(lens, out=offsets[1:])
+        return np.concatenate(times), offsets, np.frombuffer(b"".join(bodies), np.uint8)
 
     def iter_json(self, topic: str) -> Iterator[tuple[int, Any]]:
         """(log time ns, document) of each message of a JSON topic."""

@@ -49,8 +49,11 @@ def imu_settings(
         if k not in ("grade", "rate"):
             raise ConfigError(f"unknown key {k!r}; expected grade, rate", file=file, key=f"imu.{k}")
     g = load_grade(grade or table.get("grade", "navigation"))
-    rate = float(rate_hz) if rate_hz is not None else quantity(table.get("rate", 200.0), "frequency", "Hz",
-                                                               file=file, key="imu.rate")
+    rate = (
+        float(rate_hz)
+        if rate_hz is not None
+        else quantity(table.get("rate", 200.0), "frequency", "Hz", file=file, key="imu.rate")
+    )
     if not 1.0 <= rate <= 1000.0 or abs(1e9 / rate - round(1e9 / rate)) > 1e-6:
         raise ConfigError(
             f"expected an IMU rate of 1..1000 Hz dividing a second into whole nanoseconds, found {rate:g} Hz",
@@ -139,8 +142,7 @@ class RunSource:
         self.schedule = schedule
         self.truth_rate_hz = truth_rate_hz
         self.display_rate_hz = display_rate_hz
-        self.grade, self.imu_rate_hz = imu_settings(tables.get("imu"), file=file, grade=imu_grade,
-                                                    rate_hz=imu_rate_hz)
+        self.grade, self.imu_rate_hz = imu_settings(tables.get("imu"), file=file, grade=imu_grade, rate_hz=imu_rate_hz)
         self.trajectory = with_motion_faults(trajectory or scenario.trajectory(), schedule)
         self.imu = LaserImu(self.grade, seed, self.imu_rate_hz, write_ideal=write_ideal)
         if sensors is None:
@@ -150,8 +152,11 @@ class RunSource:
         self.models: list[SensorModel] = [self.suite.wrap_imu(self.imu), *self.suite.models]
         full = self.trajectory.duration_ns
         if duration_ns is not None and duration_ns > full:
-            raise ConfigError(f"the run asks for {duration_ns / 1e9:g} s but the scenario lasts {full / 1e9:g} s",
-                              file=file, key="duration")
+            raise ConfigError(
+                f"the run asks for {duration_ns / 1e9:g} s but the scenario lasts {full / 1e9:g} s",
+                file=file,
+                key="duration",
+            )
         self.duration_ns = full if duration_ns is None else int(duration_ns)
         t0 = truth_at(self.trajectory, np.array([0], dtype=np.int64))
         self._origin = (float(t0.lat[0]), float(t0.lon[0]), float(t0.h[0]))
@@ -180,10 +185,12 @@ class RunSource:
         if attach_scenario and self.scenario.path.is_file():
             rec.attach(f"scenario/{self.scenario.path.name}", self.scenario.text().encode(), "application/toml")
         if self.grade.source:
-            rec.attach(f"models/imu/{Path(self.grade.source).name}", Path(self.grade.source).read_bytes(),
-                       "application/toml")
-        rec.metadata("imu_realised",
-                     {k: {kk: vv.tolist() for kk, vv in v.items()} for k, v in self.imu.errors.realised.items()})
+            rec.attach(
+                f"models/imu/{Path(self.grade.source).name}", Path(self.grade.source).read_bytes(), "application/toml"
+            )
+        rec.metadata(
+            "imu_realised", {k: {kk: vv.tolist() for kk, vv in v.items()} for k, v in self.imu.errors.realised.items()}
+        )
         if self.suite.params:
             rec.metadata("sensors", self.suite.record())
         for src in self.suite.sources():
@@ -193,9 +200,24 @@ class RunSource:
             rec.write_json(FAULT_TOPIC, w.start_ns, w.to_json())
         self.stats.counts[FAULT_TOPIC] = len(self.schedule)
         rec.json_topic(SEGMENTS_TOPIC, "bench.Segments", {"type": "object"})
-        rec.write_json(SEGMENTS_TOPIC, 0, {"segments": [
-            {"index": s.index, "kind": s.kind, "start_s": s.start_s, "end_s": s.end_s, "gnss": s.gnss,
-             "surface": s.surface, "label": s.label} for s in self.trajectory.segments()]})
+        rec.write_json(
+            SEGMENTS_TOPIC,
+            0,
+            {
+                "segments": [
+                    {
+                        "index": s.index,
+                        "kind": s.kind,
+                        "start_s": s.start_s,
+                        "end_s": s.end_s,
+                        "gnss": s.gnss,
+                        "surface": s.surface,
+                        "label": s.label,
+                    }
+                    for s in self.trajectory.segments()
+                ]
+            },
+        )
         for spec in [TRUTH_TOPIC, *self.sensor_topics]:
             rec.columnar_topic(spec.topic, spec.schema, spec.dtype, description=spec.description, units=spec.units)
             self.stats.counts.setdefault(spec.topic, 0)

@@ -1,0 +1,164 @@
+"""Run an in-process estimator as an external DUT on real links (ICD 5 and 6).
+
+    python -m bench.dut.harness --estimator dead_reckoning \\
+        --can-interface {can_interface} --can-channel {can_channel} \\
+        --imu {imu_port} --gnss {gnss_port} --config {config}
+
+is a test case's ``[dut] command`` that puts a Python estimator behind the same wire a
+third-party DUT sees: it reads the bench's CAN frames and serial lines, splits the
+traffic into steps at every BENCH_TIME (CAN frames by their order on the bus, IMU frames
+and fix epochs by their time of validity), calls the estimator once per BENCH_TIME with
+the same decoded inputs the in-process adapter gives it, sends its epochs as
+NAV_SOLUTION/NAV_QUALITY frames, and in lockstep answers every BENCH_TIME(T) with
+DUT_READY(T). SIGTERM ends it cleanly. It is the bench's reference external DUT.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from bench.dut.estimator import DutInputs, create_estimator
+from bench.dut.inputs import InputDecoder
+from bench.frames import CanBatch
+from bench.topics import NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE
+from bench.transport.can_link import CanConfig, open_can_link
+from bench.transport.serial_link import SerialConfig, open_serial_link
+from bench.wire.can import CanEncoder, codec
+from bench.wire.imu import IMU_SAMPLE_DTYPE
+from bench.wire.nmea import GNSS_FIX_DTYPE
+
+__all__ = ["Harness", "main"]
+
+_BENCH_TIME = codec("BENCH_TIME")
+
+
+class Harness:
+    """The DUT side of a run around one estimator (see the module docstring)."""
+
+    def __init__(self, estimator_name: str, config: dict, *, can: CanConfig, imu_port: str, gnss_port: str):
+        self.estimator = create_estimator(estimator_name, config)
+        self.can = open_can_link(can)
+        self.imu = open_serial_link(SerialConfig(port=imu_port, baudrate=460_800))
+        self.gnss = open_serial_link(SerialConfig(port=gnss_port, baudrate=115_200))
+        self.decoder = InputDecoder()
+        self.encoder = CanEncoder()
+        self._carry = CanBatch.empty()
+        self._imu = np.zeros(0, IMU_SAMPLE_DTYPE)
+        self._gnss = np.zeros(0, GNSS_FIX_DTYPE)
+        self.stop = False
+        self.steps = 0
+
+    def close(self) -> None:
+        """Close the links and the estimator."""
+        self.estimator.close()
+        self.can.close()
+        self.imu.close()
+        self.gnss.close()
+
+    def _read_serial(self) -> None:
+        from bench.frames import SerialBatch
+
+        for link, name in ((self.imu, "imu"), (self.gnss, "gnss")):
+            data = link.read(0.0, 1 << 20)
+            if not data:
+                continue
+            batch = SerialBatch(np.array([0]), np.array([0, len(data)]), data)
+            if name == "imu":
+                self._imu = np.concatenate([self._imu, self.decoder.feed(imu=batch).imu])
+            else:
+                self._gnss = np.concatenate([self._gnss, self.decoder.feed(gnss=batch).gnss])
+
+    def poll(self, timeout: float = 0.05) -> None:
+        """Receive what is pending and handle every BENCH_TIME in it."""
+        got = self.can.drain(timeout=timeout)
+        if len(got) == 0:
+            return
+        frames = CanBatch.concat([self._carry, got]) if len(self._carry) else got
+        is_bt = np.flatnonzero(frames.can_id == _BENCH_TIME.frame_id)
+        if is_bt.size == 0:
+            self._carry = frames
+            return
+        last = int(is_bt[-1])
+        self._carry = frames.take(np.arange(last + 1, len(frames)))
+        frames = frames.take(np.arange(last + 1))
+        # stamp frames with their position on the bus: steps are cut at the BENCH_TIMEs
+        frames = CanBatch(np.arange(len(frames), dtype=np.int64), frames.can_id, frames.data, frames.length, frames.fd)
+        self._read_serial()
+        decoded = self.decoder.feed(can=frames)
+        bt = decoded.can.get("BENCH_TIME")
+        if bt is None or len(bt["rx_ns"]) == 0:
+            return
+        out: list[CanBatch] = []
+        prev = -1
+        for pos, t, lock in zip(bt["rx_ns"].tolist(), bt["time_ns"].tolist(), bt["lockstep"].tolist(), strict=True):
+            can = {
+                k: {c: v[(cols["rx_ns"] > prev) & (cols["rx_ns"] <= pos)] for c, v in cols.items()}
+                for k, cols in decoded.can.items()
+            }
+            prev = pos
+            take_i = self._imu["t_ns"] <= t
+            take_g = self._gnss["t_ns"] <= t
+            inputs = DutInputs(t, self._imu[take_i], self._gnss[take_g], can, self.decoder.epoch_utc_ns)
+            self._imu, self._gnss = self._imu[~take_i], self._gnss[~take_g]
+            res = self.estimator.step(inputs)
+            self.steps += 1
+            if len(res.solutions):
+                sol = np.asarray(res.solutions, NAV_SOLUTION_DTYPE)
+                out.append(self.encoder.encode_records("NAV_SOLUTION", sol, at_ns=np.full(len(sol), t)))
+            if len(res.qualities):
+                q = np.asarray(res.qualities, NAV_QUALITY_DTYPE)
+                out.append(self.encoder.encode_records("NAV_QUALITY", q, at_ns=np.full(len(q), t)))
+            if lock:
+                out.append(self.encoder.encode("DUT_READY", np.array([t]), time_ns=np.array([t])))
+        if out:
+            self.can.send_many(CanBatch.concat(out))
+
+    def serve(self) -> None:
+        """Run until SIGTERM (or SIGINT)."""
+        while not self.stop:
+            self.poll()
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command line of the harness (see the module docstring)."""
+    p = argparse.ArgumentParser(prog="python -m bench.dut.harness", description=__doc__.split("\n\n")[0])
+    p.add_argument("--estimator", required=True, help="registered estimator name")
+    p.add_argument("--can-interface", default="virtual")
+    p.add_argument("--can-channel", default=None)
+    p.add_argument("--can-port", type=int, help="udp_multicast port")
+    p.add_argument("--imu", required=True, help="serial port of the imu line")
+    p.add_argument("--gnss", required=True, help="serial port of the gnss line")
+    p.add_argument("--config", help="JSON file with the estimator's configuration")
+    args = p.parse_args(argv)
+    config = json.loads(Path(args.config).read_text()) if args.config else {}
+    options = {"port": args.can_port} if args.can_port else {}
+    can = CanConfig(interface=args.can_interface, channel=args.can_channel, options=options)
+    harness = Harness(args.estimator, config, can=can, imu_port=args.imu, gnss_port=args.gnss)
+
+    def _stop(signum, frame):
+        harness.stop = True
+
+    signal.signal(signal.SIGTERM, _stop)
+    signal.signal(signal.SIGINT, _stop)
+    print(
+        f"harness: {args.estimator} listening on {args.can_interface}:{args.can_channel}, imu {args.imu}, "
+        f"gnss {args.gnss}",
+        flush=True,
+    )
+    try:
+        harness.serve()
+    finally:
+        harness.close()
+        print(f"harness: stopped after {harness.steps} steps", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

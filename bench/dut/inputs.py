@@ -1,0 +1,103 @@
+"""The DUT's side of the links: bench traffic decoded into :class:`DutInputs`.
+
+Both the in-process adapter and the harness that runs an in-process estimator as an
+external process (:mod:`bench.dut.harness`) read the bench's traffic with the same
+decoders (IMU resynchronisation, NMEA framing and epochs, CAN checks by kind), so an
+estimator sees the same inputs either way. Decoding is done on whole batches; the decoded
+samples carry their arrival time (``rx_ns``) and are cut into scheduler steps by it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bench.dut.estimator import CanView, DutInputs
+from bench.frames import CanBatch, SerialBatch
+from bench.wire.imu import IMU_SAMPLE_DTYPE
+from bench.wire.imu_stream import ImuStreamDecoder
+from bench.wire.nmea import GNSS_FIX_DTYPE
+from bench.wire.nmea_stream import NmeaStreamDecoder
+from bench.wire.receive import BenchTrafficDecoder
+from bench.wire.tally import Tally
+
+__all__ = ["InputDecoder", "Decoded"]
+
+
+@dataclass
+class Decoded:
+    """Decoded traffic of one batch, every sample with ``rx_ns``."""
+
+    imu: np.ndarray = field(default_factory=lambda: np.zeros(0, IMU_SAMPLE_DTYPE))
+    gnss: np.ndarray = field(default_factory=lambda: np.zeros(0, GNSS_FIX_DTYPE))
+    can: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+
+    def cuts(self, step_times: np.ndarray, start_ns: int) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """Indices cutting the samples into steps: step ``k`` holds ``[cut[k], cut[k+1])``
+        of each stream, the samples that arrived in ``(T_k-1, T_k]`` (the first step from
+        ``start_ns``, inclusive)."""
+        bounds = np.concatenate([[start_ns - 1], step_times])
+        return (
+            np.searchsorted(self.imu["rx_ns"], bounds, side="right"),
+            np.searchsorted(self.gnss["rx_ns"], bounds, side="right"),
+            {k: np.searchsorted(v["rx_ns"], bounds, side="right") for k, v in self.can.items()},
+        )
+
+
+class InputDecoder:
+    """Stateful decoders of the three links, with one tally of bad frames by kind.
+
+    Parameters
+    ----------
+    epoch_utc_ns:
+        UTC of bench time zero if known in advance (else taken from BENCH_EPOCH).
+    """
+
+    def __init__(self, epoch_utc_ns: int | None = None):
+        self.tally = Tally()
+        self.can = BenchTrafficDecoder(tally=self.tally)
+        self.imu = ImuStreamDecoder(tally=self.tally)
+        self.gnss = NmeaStreamDecoder(epoch_utc_ns=epoch_utc_ns, tally=self.tally)
+        self.epoch_utc_ns = epoch_utc_ns
+
+    def feed(
+        self, can: CanBatch | None = None, imu: SerialBatch | None = None, gnss: SerialBatch | None = None
+    ) -> Decoded:
+        """Decode what arrived (``t_ns`` of frames and chunks = arrival, bench time)."""
+        out = Decoded()
+        if can is not None and len(can):
+            out.can = self.can.feed(can)
+            ep = out.can.get("BENCH_EPOCH")
+            if ep is not None and len(ep["rx_ns"]) and self.epoch_utc_ns is None:
+                self.epoch_utc_ns = int(ep["epoch_utc_ns"][-1])
+                self.gnss.epoch_utc_ns = self.epoch_utc_ns
+        if imu is not None and len(imu):
+            out.imu = self.imu.feed_batch(imu)
+        if gnss is not None and len(gnss):
+            parts = [
+                self.gnss.feed(gnss.buf[gnss.offsets[k] : gnss.offsets[k + 1]].tobytes(), int(gnss.t_ns[k]))
+                for k in range(len(gnss))
+            ]
+            parts = [p for p in parts if len(p)]
+            if parts:
+                out.gnss = np.concatenate(parts)
+        return out
+
+    def step_inputs(self, decoded: Decoded, step_times: np.ndarray, start_ns: int) -> Iterator[DutInputs]:
+        """The :class:`DutInputs` of each step of a decoded window."""
+        ci, cg, cc = decoded.cuts(step_times, start_ns)
+        ci_l, cg_l = ci.tolist(), cg.tolist()
+        cc_l = {k: v.tolist() for k, v in cc.items()}
+        names = list(cc_l)
+        for k, t in enumerate(step_times.tolist()):
+            lo = {n: cc_l[n][k] for n in names}
+            hi = {n: cc_l[n][k + 1] for n in names}
+            yield DutInputs(
+                t,
+                decoded.imu[ci_l[k] : ci_l[k + 1]],
+                decoded.gnss[cg_l[k] : cg_l[k + 1]],
+                CanView(decoded.can, lo, hi),
+                self.epoch_utc_ns,
+            )

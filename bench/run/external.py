@@ -1,0 +1,317 @@
+"""The external DUT adapter: a process (or real hardware) on real links (ICD 5 and 6).
+
+The bench opens the CAN bus and the two serial lines (pty pairs by default: the DUT gets
+the slave paths in ``{imu_port}`` and ``{gnss_port}``), writes the DUT's configuration to
+a JSON file (``{config}``), starts the command line, and then either
+
+* **lockstep** (ICD 6): per step ``T`` writes the serial bytes due by ``T``, sends the CAN
+  frames due by ``T`` (ending with BENCH_TIME(T), lockstep bit set) and waits for a
+  DUT_READY >= ``T``, recording what the DUT sends meanwhile; or
+* **real time**: emits every frame and byte group at its time on the clock (bytes paced
+  at the line's baud), measuring the lateness of every emission, and records what
+  arrives with the bench time of its arrival.
+
+A DUT that dies, does not answer, never starts, or floods the bus ends the run with a
+:class:`~bench.errors.DutError` naming what happened; shutdown always ends the whole
+process group.
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from bench.clock.pacing import Clock, TimingLog
+from bench.dut.process import DutProcess, LogLine, describe_exit, fill_placeholders
+from bench.errors import ConfigError, DutError
+from bench.frames import CanBatch
+from bench.run.spec import DutSpec, LinkSpec
+from bench.run.traffic import Traffic
+from bench.transport.can_link import CanConfig, CanLink, open_can_link
+from bench.transport.pacing import byte_groups, byte_time_ns
+from bench.transport.serial_link import SerialConfig, SerialLink, open_serial_link
+from bench.wire.can import CanEncoder, codec
+
+__all__ = ["ExternalDut", "serial_config", "can_config"]
+
+_READY = codec("DUT_READY")
+
+
+def serial_config(table: dict, key: str, default_baud: int) -> SerialConfig:
+    """A :class:`SerialConfig` from ``[dut.links] imu``/``gnss`` (``port``, ``baud``)."""
+    t = dict(table)
+    if "baud" in t:
+        t["baudrate"] = t.pop("baud")
+    t.setdefault("baudrate", default_baud)
+    return SerialConfig.from_mapping(t, key=f"dut.links.{key}")
+
+
+def can_config(table: dict) -> CanConfig:
+    """A :class:`CanConfig` from ``[dut.links] can``."""
+    return CanConfig.from_mapping(table, key="dut.links.can")
+
+
+class ExternalDut:
+    """A DUT on real links, started as a process unless ``spec.kind == "hardware"``.
+
+    Parameters
+    ----------
+    spec, links:
+        The DUT and its links.
+    encoder:
+        The bench's CAN encoder (alive counters continue across handshake and traffic).
+    lockstep:
+        Lockstep mode (BENCH_TIME with the lockstep bit, DUT_READY awaited).
+    on_lines:
+        Receives the DUT's output lines with the bench time they are recorded at.
+    """
+
+    def __init__(
+        self,
+        spec: DutSpec,
+        links: LinkSpec,
+        encoder: CanEncoder,
+        *,
+        lockstep: bool,
+        on_lines: Callable[[list[LogLine], int], None] | None = None,
+    ):
+        self.spec = spec
+        self.encoder = encoder
+        self.lockstep = lockstep
+        self.on_lines = on_lines
+        self.now_ns = 0  # bench time stamped on received frames
+        self.ready_ns = -1  # latest DUT_READY time received
+        self.process: DutProcess | None = None
+        self._tmp = tempfile.TemporaryDirectory(prefix="bench-dut-")
+        self.can: CanLink | None = None
+        self.serial: dict[str, SerialLink] = {}
+        self.imu_baud = int(links.imu.get("baud", 460_800))
+        self.gnss_baud = int(links.gnss.get("baud", 115_200))
+        try:
+            self.can = open_can_link(can_config(links.can), clock=lambda: self.now_ns)
+            self.serial["imu"] = open_serial_link(serial_config(links.imu, "imu", 460_800))
+            self.serial["gnss"] = open_serial_link(serial_config(links.gnss, "gnss", 115_200))
+            if spec.kind == "external":
+                self._start()
+        except BaseException:
+            self.close()
+            raise
+
+    # ------------------------------------------------------------------ process
+    def _start(self) -> None:
+        cfg_path = Path(self._tmp.name) / "dut_config.json"
+        cfg_path.write_text(json.dumps(self.spec.config, indent=2, default=str))
+        assert self.can is not None
+        values = {
+            "can_interface": str(self.can.config.interface),
+            "can_channel": str(self.can.config.resolved_channel),
+            "imu_port": self.serial["imu"].dut_port or str(self.serial["imu"].config.port),
+            "gnss_port": self.serial["gnss"].dut_port or str(self.serial["gnss"].config.port),
+            "config": str(cfg_path),
+        }
+        if not self.spec.command:
+            raise ConfigError("an external DUT needs its command line", key="dut.command")
+        argv = fill_placeholders(self.spec.command, values)
+        self.process = DutProcess(
+            argv, cwd=self.spec.cwd, env=self.spec.env, shutdown_timeout_s=self.spec.shutdown_timeout_s
+        )
+
+    def _check_process(self) -> None:
+        if self.process is not None:
+            code = self.process.poll()
+            if code is not None:
+                self._flush_lines()
+                tail = "; ".join(ln.text for ln in self.process.take_lines()[-5:])
+                raise DutError(
+                    f"the DUT process exited {describe_exit(code)} at bench time {self.now_ns / 1e9:.3f} s"
+                    + (f" (last output: {tail})" if tail else "")
+                )
+
+    def _flush_lines(self) -> None:
+        if self.process is not None and self.on_lines is not None:
+            lines = self.process.take_lines()
+            if lines:
+                self.on_lines(lines, self.now_ns)
+
+    def start(self, first: CanBatch, received: Callable[[CanBatch], None], sent: Callable[[CanBatch], None]) -> None:
+        """Wait until the DUT listens.
+
+        Lockstep: send ``first`` (the run's own BENCH_TIME(0) frame, byte for byte, so the
+        traffic after it is the same whatever the start-up took) every 100 ms until the DUT
+        answers DUT_READY(0), within the start-up timeout. Real time: the process is still
+        alive after a short settling time.
+        """
+        deadline = time.monotonic() + self.spec.startup_timeout_s
+        if not self.lockstep:
+            time.sleep(min(0.5, self.spec.startup_timeout_s))
+            self._check_process()
+            return
+        assert self.can is not None
+        while True:
+            self._check_process()
+            self.can.send_many(first)
+            sent(first)
+            got = self.can.drain(timeout=0.1)
+            if len(got):
+                received(got)
+                if self._ready_at_least(got, 0):
+                    self._flush_lines()
+                    return
+            if time.monotonic() > deadline:
+                self._flush_lines()
+                raise DutError(
+                    f"the DUT did not answer BENCH_TIME(0) with DUT_READY within "
+                    f"{self.spec.startup_timeout_s:g} s of its start (ICD 5: listening within 5 s)"
+                )
+
+    def _ready_at_least(self, frames: CanBatch, t_ns: int) -> bool:
+        """Note the DUT_READY times in ``frames``; whether the DUT has reached ``t_ns``."""
+        sel = np.flatnonzero(frames.can_id == _READY.frame_id)
+        if sel.size:
+            values, status = _READY.decode(frames.take(sel))
+            ok = status == 0
+            if ok.any():
+                self.ready_ns = max(self.ready_ns, int(values["time_ns"][ok].max()))
+        return self.ready_ns >= t_ns
+
+    # ------------------------------------------------------------------ lockstep
+    def exchange_lockstep(
+        self, traffic: Traffic, step_times: np.ndarray, timeout_s: float, received: Callable[[CanBatch], None]
+    ) -> None:
+        """Run the steps of one window (ICD 6)."""
+        assert self.can is not None
+        can, imu, gnss = traffic.can, traffic.imu, traffic.gnss
+        c_cut = np.searchsorted(can.t_ns, step_times, side="right")
+        i_cut = np.searchsorted(imu.t_ns, step_times, side="right")
+        g_cut = np.searchsorted(gnss.t_ns, step_times, side="right")
+        c0 = i0 = g0 = 0
+        flood = max(
+            100,
+            int(self.spec.flood_frames_per_s * (step_times[1] - step_times[0]) * 1e-9) if len(step_times) > 1 else 100,
+        )
+        for k, t in enumerate(step_times.tolist()):
+            self.now_ns = t
+            if i_cut[k] > i0:
+                self.serial["imu"].write(imu.buf[imu.offsets[i0] : imu.offsets[i_cut[k]]].tobytes())
+            if g_cut[k] > g0:
+                self.serial["gnss"].write(gnss.buf[gnss.offsets[g0] : gnss.offsets[g_cut[k]]].tobytes())
+            if c_cut[k] > c0:
+                self.can.send_many(can.take(np.arange(c0, c_cut[k])))
+            c0, i0, g0 = c_cut[k], i_cut[k], g_cut[k]
+            self._await_ready(t, timeout_s, flood, received)
+
+    def _await_ready(self, t_ns: int, timeout_s: float, flood: int, received: Callable[[CanBatch], None]) -> None:
+        assert self.can is not None
+        if self.ready_ns >= t_ns:  # answered already (the start-up handshake's BENCH_TIME(0))
+            return
+        deadline = time.monotonic() + timeout_s
+        n = 0
+        while True:
+            got = self.can.drain(timeout=0.02, max_frames=4096)
+            if len(got):
+                n += len(got)
+                received(got)
+                if n > flood:
+                    raise DutError(
+                        f"the DUT floods the bus: {n} frames within the step ending at "
+                        f"{t_ns / 1e9:.3f} s (limit {flood})"
+                    )
+                if self._ready_at_least(got, t_ns):
+                    return
+            self._check_process()
+            if time.monotonic() > deadline:
+                self._flush_lines()
+                raise DutError(
+                    f"no DUT_READY for bench time {t_ns / 1e9:.3f} s within {timeout_s:g} s "
+                    "(the DUT hangs or ignores the lockstep protocol)"
+                )
+
+    # ------------------------------------------------------------------ real time
+    def exchange_realtime(
+        self, traffic: Traffic, clock: Clock, timing: TimingLog, end_ns: int, received: Callable[[CanBatch], None]
+    ) -> None:
+        """Emit one window's traffic on the clock, receiving as it goes."""
+        assert self.can is not None
+        kinds, times, index = self._schedule(traffic)
+        can = traffic.can
+        i_buf, g_buf = self._groups
+        flood = int(self.spec.flood_frames_per_s * max(1e-9 * (end_ns - self.now_ns), 0.01)) + 100
+        n_rx = 0
+        k = 0
+        n = len(times)
+        while k < n:
+            t = int(times[k])
+            late = clock.wait_until(t)
+            timing.add(t, late)
+            j = k
+            while j < n and times[j] == t:
+                kind, i = kinds[j], index[j]
+                if kind == 0:
+                    self.can.send_many(can.take(np.array([i])))
+                elif kind == 1:
+                    self.serial["imu"].write(i_buf[i])
+                else:
+                    self.serial["gnss"].write(g_buf[i])
+                j += 1
+            k = j
+            self.now_ns = clock.now_ns()
+            got = self.can.drain(timeout=0.0)
+            if len(got):
+                n_rx += len(got)
+                received(got)
+                if n_rx > flood:
+                    raise DutError(f"the DUT floods the bus: {n_rx} frames in one window (limit {flood})")
+        clock.wait_until(end_ns)
+        self.now_ns = clock.now_ns()
+        got = self.can.drain(timeout=0.0)
+        if len(got):
+            received(got)
+        self._check_process()
+        self._flush_lines()
+
+    def _schedule(self, traffic: Traffic) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Emissions of a window in time order: (link kind 0 CAN / 1 imu / 2 gnss, time, index)."""
+        groups: list[list[bytes]] = []
+        parts_k = [np.zeros(len(traffic.can), np.int8)]
+        parts_t = [traffic.can.t_ns]
+        parts_i = [np.arange(len(traffic.can))]
+        for kind, batch, baud in ((1, traffic.imu, self.imu_baud), (2, traffic.gnss, self.gnss_baud)):
+            times, offsets = (
+                byte_groups(batch, byte_time_ns(baud)) if len(batch) else (np.zeros(0, np.int64), np.zeros(1, np.int64))
+            )
+            groups.append([batch.buf[offsets[g] : offsets[g + 1]].tobytes() for g in range(len(times))])
+            parts_k.append(np.full(len(times), kind, np.int8))
+            parts_t.append(times)
+            parts_i.append(np.arange(len(times)))
+        self._groups = groups
+        k, t, i = np.concatenate(parts_k), np.concatenate(parts_t), np.concatenate(parts_i)
+        order = np.lexsort((k, t))
+        return k[order], t[order], i[order]
+
+    # ------------------------------------------------------------------ end
+    def close(self) -> dict:
+        """Stop the process and close the links (idempotent); returns exit facts."""
+        facts: dict = {}
+        if self.process is not None:
+            self._flush_lines()
+            code = self.process.close()
+            facts = {
+                "exit_code": code,
+                "exit": describe_exit(code) if code is not None else "unknown",
+                "terminated_in_time": self.process.terminated_in_time,
+            }
+            self._flush_lines()
+            self.process = None
+        if self.can is not None:
+            self.can.close()
+            self.can = None
+        for link in self.serial.values():
+            link.close()
+        self.serial = {}
+        self._tmp.cleanup()
+        return facts

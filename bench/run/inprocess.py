@@ -1,0 +1,107 @@
+"""The in-process DUT adapter: the bench calls the estimator directly.
+
+The bench's traffic of a window, already encoded and faulted as it would be on the
+wire, is decoded by the DUT-side decoders (:mod:`bench.dut.inputs`); the estimator is
+called once per scheduler step with what arrived up to that step; its epochs are encoded
+into NAV_SOLUTION / NAV_QUALITY frames as the ICD puts them on the bus, stamped with the
+step time, so the bench receives and records them exactly as from an external DUT.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bench.dut.estimator import Estimator
+from bench.dut.inputs import InputDecoder
+from bench.errors import CodecError, DutError
+from bench.frames import CanBatch
+from bench.run.traffic import Traffic
+from bench.topics import NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE
+from bench.wire.can import CanEncoder
+
+__all__ = ["InProcessDut"]
+
+
+class InProcessDut:
+    """Drives an :class:`~bench.dut.estimator.Estimator` step by step.
+
+    Parameters
+    ----------
+    estimator:
+        The configured estimator.
+    epoch_utc_ns:
+        UTC of bench time zero (the DUT learns it from BENCH_EPOCH anyway).
+    """
+
+    def __init__(self, estimator: Estimator, epoch_utc_ns: int | None = None):
+        self.estimator = estimator
+        self.decoder = InputDecoder(epoch_utc_ns)
+        self.encoder = CanEncoder()
+        self.epochs = 0
+
+    def exchange(self, traffic: Traffic, step_times: np.ndarray, start_ns: int) -> CanBatch:
+        """Feed one window's traffic; return the DUT's frames (``t_ns`` = the step they
+        were produced in)."""
+        decoded = self.decoder.feed(traffic.can, traffic.imu, traffic.gnss)
+        sols: list[np.ndarray] = []
+        quals: list[np.ndarray] = []
+        s_rx: list[tuple[int, int]] = []
+        q_rx: list[tuple[int, int]] = []
+        step = self.estimator.step
+        for inputs in self.decoder.step_inputs(decoded, step_times, start_ns):
+            try:
+                out = step(inputs)
+            except Exception as exc:  # the estimator under test failed: that ends the run
+                raise DutError(
+                    f"the estimator {self.estimator.name!r} raised at bench time {inputs.t_ns / 1e9:.3f} "
+                    f"s: {type(exc).__name__}: {exc}"
+                ) from exc
+            if len(out.solutions):
+                sols.append(out.solutions)
+                s_rx.append((inputs.t_ns, len(out.solutions)))
+            if len(out.qualities):
+                quals.append(out.qualities)
+                q_rx.append((inputs.t_ns, len(out.qualities)))
+        return self._frames(_stamped(sols, s_rx, NAV_SOLUTION_DTYPE), _stamped(quals, q_rx, NAV_QUALITY_DTYPE))
+
+    def _frames(self, sols: np.ndarray | None, quals: np.ndarray | None) -> CanBatch:
+        parts = []
+        try:
+            if sols is not None:
+                self.epochs += len(sols)
+                parts.append(self.encoder.encode_records("NAV_SOLUTION", sols))
+            if quals is not None:
+                parts.append(self.encoder.encode_records("NAV_QUALITY", quals))
+        except CodecError as exc:  # the estimator produced values the ICD cannot carry
+            raise DutError(f"the estimator {self.estimator.name!r} output does not fit NAV frames: {exc}") from exc
+        if not parts:
+            return CanBatch.empty(64)
+        batch = CanBatch.concat(parts)
+        return batch.take(np.argsort(batch.t_ns, kind="stable"))
+
+    def close(self) -> None:
+        """End of the run."""
+        self.estimator.close()
+
+
+def _stamped(parts: list[np.ndarray], rx: list[tuple[int, int]], dtype: np.dtype) -> np.ndarray | None:
+    """The records of a window's steps in one array, ``rx_ns`` set to their step time."""
+    if not parts:
+        return None
+    out = np.zeros(sum(n for _, n in rx), dtype)
+    a = 0
+    for part in parts:
+        b = a + len(part)
+        if part.dtype == dtype:
+            out[a:b] = part  # same layout: a plain copy, no per-field promotion
+        else:
+            try:
+                for name in dtype.names:
+                    if part.dtype.names and name in part.dtype.names:
+                        out[name][a:b] = part[name]
+            except (TypeError, ValueError) as exc:
+                raise DutError(f"estimator output is not of the NAV record layout: {exc}") from exc
+        a = b
+    times, counts = zip(*rx, strict=True)
+    out["rx_ns"] = np.repeat(np.array(times, np.int64), np.array(counts))
+    return out

@@ -1,0 +1,131 @@
+"""The bench's side of the DUT's output: received frames decoded, checked and recorded.
+
+Every frame from the DUT is recorded raw (``/wire/can/rx``), decoded with the checks of
+:class:`~bench.wire.receive.NavReceiver` into ``/dut/nav_solution`` and
+``/dut/nav_quality``, DUT_READY times go to ``/dut/ready``, every bad frame to
+``/dut/bad_frames`` (never fatal), and the solution is also shown on the Foxglove map
+(``/dut/location``). The DUT's standard output and error go to ``/dut/log``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bench.dut.process import LogLine
+from bench.frames import CanBatch
+from bench.record.foxglove import LOCATION_FIX, location_fixes
+from bench.record.mcap_io import RecordingWriter
+from bench.record.wire_topics import CAN_RX, write_can
+from bench.topics import NAV_QUALITY_TOPIC, NAV_SOLUTION_TOPIC, TopicSpec
+from bench.wire.receive import NavReceiver
+from bench.wire.tally import Tally
+
+__all__ = ["DutOutputRecorder", "READY_TOPIC", "BAD_FRAMES_TOPIC", "LOG_TOPIC", "LOCATION_TOPIC"]
+
+READY_TOPIC = TopicSpec(
+    "/dut/ready",
+    "bench.DutReady",
+    np.dtype([("t_ns", "<i8"), ("rx_ns", "<i8")]),
+    "DUT_READY: bench time up to which the DUT has processed its input, and its arrival",
+    {"t_ns": "ns", "rx_ns": "ns"},
+)
+BAD_FRAMES_TOPIC = "/dut/bad_frames"
+LOG_TOPIC = "/dut/log"
+LOCATION_TOPIC = "/dut/location"
+
+
+class DutOutputRecorder:
+    """Decodes and records what the DUT sends (see the module docstring).
+
+    Parameters
+    ----------
+    rec:
+        The run's recording (wire topics already declared).
+    display_period_ns:
+        Spacing of the Foxglove map points of the DUT solution.
+    """
+
+    def __init__(self, rec: RecordingWriter, display_period_ns: int = 200_000_000):
+        self.rec = rec
+        self.tally = Tally()
+        self.receiver = NavReceiver(tally=self.tally)
+        self.display_period_ns = display_period_ns
+        self._next_display = 0
+        self.solutions = 0
+        self.qualities = 0
+        self.last_ready_ns = -1
+        for spec in (NAV_SOLUTION_TOPIC, NAV_QUALITY_TOPIC, READY_TOPIC):
+            rec.columnar_topic(spec.topic, spec.schema, spec.dtype, description=spec.description, units=spec.units)
+        rec.json_topic(
+            BAD_FRAMES_TOPIC,
+            "bench.BadFrame",
+            {
+                "type": "object",
+                "properties": {
+                    "t_ns": {"type": "integer"},
+                    "link": {"type": "string"},
+                    "kind": {"type": "string"},
+                    "detail": {"type": "string"},
+                    "data": {"type": "string", "description": "hex"},
+                },
+            },
+        )
+        rec.json_topic(
+            LOG_TOPIC,
+            "bench.DutLog",
+            {
+                "type": "object",
+                "properties": {"t_ns": {"type": "integer"}, "stream": {"type": "string"}, "text": {"type": "string"}},
+            },
+        )
+        rec.json_topic(LOCATION_TOPIC, "foxglove.LocationFix", LOCATION_FIX)
+
+    def feed(self, frames: CanBatch) -> None:
+        """Record and decode a batch of received frames (``t_ns`` = arrival, bench time)."""
+        if len(frames) == 0:
+            return
+        write_can(self.rec, CAN_RX, frames)
+        out = self.receiver.feed(frames)
+        if len(out.solutions):
+            self.rec.write_block(NAV_SOLUTION_TOPIC.topic, out.solutions)
+            self.solutions += len(out.solutions)
+            self._display(out.solutions)
+        if len(out.qualities):
+            self.rec.write_block(NAV_QUALITY_TOPIC.topic, out.qualities)
+            self.qualities += len(out.qualities)
+        if len(out.ready_ns):
+            r = np.zeros(len(out.ready_ns), READY_TOPIC.dtype)
+            r["t_ns"], r["rx_ns"] = out.ready_ns, out.ready_rx_ns
+            self.rec.write_block(READY_TOPIC.topic, r)
+            self.last_ready_ns = max(self.last_ready_ns, int(out.ready_ns.max()))
+        self.write_bad()
+
+    def write_bad(self) -> None:
+        """Record the bad frames kept since the last call."""
+        for b in self.tally.pop_bad():
+            self.rec.write_json(
+                BAD_FRAMES_TOPIC,
+                b.t_ns,
+                {"t_ns": b.t_ns, "link": b.stream, "kind": b.kind, "detail": b.reason, "data": b.data.hex()},
+            )
+
+    def _display(self, sol: np.ndarray) -> None:
+        t = sol["t_ns"]
+        pick = np.flatnonzero(t >= self._next_display)
+        if pick.size == 0:
+            return
+        # one point per display period
+        slot = t[pick] // self.display_period_ns
+        first = pick[np.concatenate([[True], np.diff(slot) > 0])]
+        self._next_display = int((t[first[-1]] // self.display_period_ns + 1) * self.display_period_ns)
+        s = sol[first]
+        self.rec.write_json_many(
+            LOCATION_TOPIC,
+            s["t_ns"],
+            location_fixes(self.rec.epoch_ns, s["t_ns"], s["lat"], s["lon"], s["h"], frame_id="dut"),
+        )
+
+    def log(self, lines: list[LogLine], t_ns: int) -> None:
+        """Record output lines of the DUT process at bench time ``t_ns``."""
+        for ln in lines:
+            self.rec.write_json(LOG_TOPIC, t_ns, {"t_ns": t_ns, "stream": ln.stream, "text": ln.text})

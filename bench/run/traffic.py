@@ -1,0 +1,211 @@
+"""From samples to the wire: the bench's outgoing traffic of each window, encoded per the
+ICD and passed through the wire-level faults.
+
+Per window ``(t0, t1]``: the IMU frames on the ``imu`` line at their time of validity;
+the fix epochs as NMEA sentences on the ``gnss`` line when they leave the receiver
+(measurement time plus latency, possibly after the window: they are held until due);
+ODOMETER, DOPPLER and DRIVER_INPUT at their sample times; BENCH_TIME every 10 ms (with
+the lockstep bit in lockstep runs), BENCH_EPOCH every second, BENCH_CMD at the commanded
+times. At equal times BENCH_TIME goes last, as ICD 6 requires of a lockstep step.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench.faults.schedule import FaultSchedule
+from bench.faults.wire import WIRE_EVENT_DTYPE, WireFaultInjector
+from bench.frames import CanBatch, SerialBatch
+from bench.sensors.base import SensorModel
+from bench.sensors.bds import BdsReceiver
+from bench.sensors.doppler import DopplerRadar
+from bench.sensors.driver import DriverInput
+from bench.sensors.imu.faulty import FaultyImu
+from bench.sensors.imu.model import LaserImu
+from bench.sensors.odometer import Odometer
+from bench.wire import imu as imu_codec
+from bench.wire import nmea
+from bench.wire.can import CanEncoder, codec
+
+__all__ = ["Traffic", "TrafficEncoder", "BENCH_TIME_ID", "COMMAND_CODES"]
+
+BENCH_TIME_ID = codec("BENCH_TIME").frame_id
+#: BENCH_CMD codes by name (ICD 2.1).
+COMMAND_CODES = {"grid": 1, "geographic": 2, "reset": 3}
+
+
+@dataclass
+class Traffic:
+    """The outgoing traffic due in one window, each link in time order."""
+
+    can: CanBatch
+    imu: SerialBatch
+    gnss: SerialBatch
+    events: np.ndarray  # wire fault events (WIRE_EVENT_DTYPE)
+
+
+def _ordered(batch: CanBatch) -> CanBatch:
+    """Time order, and BENCH_TIME after the other frames of the same time."""
+    if len(batch) == 0:
+        return batch
+    order = np.lexsort(((batch.can_id == BENCH_TIME_ID).astype(np.int8), batch.t_ns))
+    return batch.take(order)
+
+
+class TrafficEncoder:
+    """Encodes a run's sensor records onto the ICD links, window by window.
+
+    Parameters
+    ----------
+    models:
+        The run's sensor models (their records arrive by topic ``/<name>``).
+    epoch_ns:
+        UTC of bench time zero (BENCH_EPOCH, NMEA time fields).
+    lockstep:
+        Set the lockstep bit of BENCH_TIME.
+    schedule, seed:
+        The run's fault schedule and seed (wire-layer windows are applied).
+    commands:
+        ``(t_ns, code)`` BENCH_CMD events.
+    talker:
+        NMEA talker (``GB``, ``BD``, ``GN``).
+    """
+
+    def __init__(
+        self,
+        models: Sequence[SensorModel],
+        *,
+        epoch_ns: int,
+        lockstep: bool,
+        schedule: FaultSchedule,
+        seed: int,
+        commands: Sequence[tuple[int, int]] = (),
+        talker: str = "GB",
+        bench_time_period_ns: int = 10_000_000,
+        epoch_period_ns: int = 1_000_000_000,
+    ):
+        self.epoch_ns = int(epoch_ns)
+        self.lockstep = lockstep
+        self.talker = talker
+        self.bench_time_period_ns = bench_time_period_ns
+        self.epoch_period_ns = epoch_period_ns
+        self.commands = sorted((int(t), int(c)) for t, c in commands)
+        self.encoder = CanEncoder()
+        self.injector = WireFaultInjector(schedule, seed)
+        self._faulty = any(w.layer == "wire" for w in schedule)
+        self._imu_counter = 0
+        self._held_gnss = SerialBatch.empty()
+        self._topic: dict[str, str] = {}
+        self.outage_styles: dict[int, int] = {}
+        for m in models:
+            base = m.imu if isinstance(m, FaultyImu) else m
+            for cls, kind in (
+                (LaserImu, "imu"),
+                (DopplerRadar, "doppler"),
+                (Odometer, "odometer"),
+                (BdsReceiver, "bds"),
+                (DriverInput, "driver"),
+            ):
+                if isinstance(base, cls) and kind not in self._topic:
+                    self._topic[kind] = f"/{m.name}"
+
+    def _periodic(self, period: int, t0: int, t1: int, first: bool) -> np.ndarray:
+        k0 = t0 // period + (0 if first and t0 % period == 0 else 1)
+        return np.arange(k0, t1 // period + 1, dtype=np.int64) * period
+
+    def window(self, records: dict[str, np.ndarray], t0_ns: int, t1_ns: int) -> Traffic:
+        """The traffic due in ``(t0, t1]`` (``[0, t1]`` for the first window)."""
+        first = t0_ns == 0
+        enc = self.encoder
+        parts: list[CanBatch] = []
+        rec = records.get(self._topic.get("odometer", ""))
+        if rec is not None and len(rec):
+            parts.append(
+                enc.encode(
+                    "ODOMETER",
+                    rec["t_ns"],
+                    pulse_count=rec["pulses"],
+                    speed=rec["speed"],
+                    reverse=rec["reverse"],
+                    valid=rec["valid"],
+                )
+            )
+        rec = records.get(self._topic.get("doppler", ""))
+        if rec is not None and len(rec):
+            parts.append(
+                enc.encode(
+                    "DOPPLER",
+                    rec["t_ns"],
+                    speed=rec["speed"],
+                    quality=rec["quality"],
+                    valid=rec["valid"],
+                    low_signal=rec["low_signal"],
+                )
+            )
+        rec = records.get(self._topic.get("driver", ""))
+        if rec is not None and len(rec):
+            parts.append(
+                enc.encode(
+                    "DRIVER_INPUT",
+                    rec["t_ns"],
+                    left_lever=rec["left_lever"],
+                    right_lever=rec["right_lever"],
+                    steering=rec["steering"],
+                    brake=rec["brake"],
+                )
+            )
+        t_ep = self._periodic(self.epoch_period_ns, t0_ns, t1_ns, first)
+        if len(t_ep):
+            parts.append(enc.encode("BENCH_EPOCH", t_ep, epoch_utc_ns=np.full(len(t_ep), self.epoch_ns)))
+        cmds = [(t, c) for t, c in self.commands if (t0_ns < t <= t1_ns) or (first and t == 0)]
+        if cmds:
+            parts.append(
+                enc.encode(
+                    "BENCH_CMD", np.array([t for t, _ in cmds], np.int64), command=np.array([c for _, c in cmds])
+                )
+            )
+        t_bt = self._periodic(self.bench_time_period_ns, t0_ns, t1_ns, first)
+        if len(t_bt):
+            parts.append(enc.encode("BENCH_TIME", t_bt, time_ns=t_bt, lockstep=np.full(len(t_bt), int(self.lockstep))))
+        can = _ordered(CanBatch.concat(parts))
+        imu = SerialBatch.empty()
+        rec = records.get(self._topic.get("imu", ""))
+        if rec is not None and len(rec):
+            n = len(rec)
+            counter = (self._imu_counter + np.arange(n)) % 256
+            self._imu_counter = (self._imu_counter + n) % 256
+            imu = imu_codec.encode_batch(
+                rec["t_ns"], rec["dtheta"], rec["dvel"], rec["status"], rec["temperature"], counter
+            )
+        gnss = self._gnss(records.get(self._topic.get("bds", "")), t1_ns)
+        events = np.zeros(0, WIRE_EVENT_DTYPE)
+        if self._faulty:
+            can, ev_can = self.injector.can(can, until_ns=t1_ns)
+            imu, ev_imu = self.injector.serial("imu", imu, until_ns=t1_ns)
+            gnss, ev_gnss = self.injector.serial("gnss", gnss, until_ns=t1_ns)
+            can = _ordered(can)
+            events = np.concatenate([ev_can, ev_imu, ev_gnss])
+        return Traffic(can, imu, gnss, events)
+
+    def _gnss(self, rec: np.ndarray | None, t1_ns: int) -> SerialBatch:
+        """NMEA chunks due by ``t1`` (later ones are held for the next window)."""
+        batch = SerialBatch.empty()
+        if rec is not None and len(rec):
+            fixes = np.zeros(len(rec), nmea.GNSS_FIX_DTYPE)
+            fixes["t_ns"] = rec["t_ns"]
+            fixes["utc_ns"] = self.epoch_ns + rec["t_ns"]
+            for f in ("lat", "lon", "h", "vel_n", "sigma_lat", "sigma_lon", "sigma_alt", "hdop"):
+                fixes[f] = rec[f]
+            fixes["sats"] = rec["num_sats"]
+            fixes["quality"] = rec["fix_quality"]
+            batch = nmea.encode_epochs(fixes, talker=self.talker, at_ns=rec["tx_ns"], outage_style=rec["outage_style"])
+        if self._faulty:
+            return batch  # the injector holds what is not yet due
+        if len(self._held_gnss):
+            batch = SerialBatch.concat([self._held_gnss, batch])
+        due = batch.t_ns <= t1_ns
+        self._held_gnss = batch.take(~due)
+        return batch.take(due)
