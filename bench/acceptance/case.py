@@ -93,12 +93,15 @@ class DutSpec:
 
 @dataclass(frozen=True)
 class ClockSpec:
-    """Lockstep or real time; step, DUT_READY timeout and real-time budget in ns."""
+    """Lockstep or real time; step, DUT_READY timeout, real-time lateness budget (max and
+    99th percentile) in ns, and the real-time speed factor."""
 
     mode: str = "lockstep"
     step_ns: int = 10_000_000
     timeout_ns: int = 5_000_000_000
     budget_ns: int | None = None
+    budget_p99_ns: int | None = None
+    speed: float = 1.0
 
 
 @dataclass(frozen=True)

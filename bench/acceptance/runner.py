@@ -72,7 +72,11 @@ class RunnerUnavailableError(BenchError):
 
 
 _FACTORIES: dict[str, Callable[[], CaseRunner]] = {}
-_BUILTIN = {"synthetic": "bench.acceptance.synthetic:SyntheticRunner"}
+_BUILTIN = {
+    "synthetic": "bench.acceptance.synthetic:SyntheticRunner",
+    "in_process": "bench.run.case_runner:EngineRunner",
+    "external": "bench.run.case_runner:EngineRunner",
+}
 
 
 def register_runner(dut_kind: str, factory: Callable[[], CaseRunner]) -> None:

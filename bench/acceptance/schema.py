@@ -360,8 +360,12 @@ def _clock(t: Table | None) -> ClockSpec:
     step = t.time_ns("step", "10 ms", positive=True)
     timeout = t.time_ns("timeout", "5 s", positive=True)
     budget = t.time_ns("budget", positive=True)
+    budget_p99 = t.time_ns("budget_p99", positive=True)
+    speed = t.number("speed", 1.0)
     t.finish()
-    return ClockSpec(str(mode), int(step), int(timeout), budget)  # type: ignore[arg-type]
+    if speed is None or speed <= 0:
+        raise t.error("speed", f"expected a positive number (2: twice real time), found {speed!r}")
+    return ClockSpec(str(mode), int(step), int(timeout), budget, budget_p99, float(speed))  # type: ignore[arg-type]
 
 
 def _run(t: Table | None) -> RunSpec:

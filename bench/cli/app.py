@@ -18,7 +18,7 @@ __all__ = ["run", "EXIT_OK", "EXIT_FAIL", "EXIT_USAGE", "EXIT_ERROR", "SUBCOMMAN
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_ERROR = 0, 1, 2, 3
 
 #: Modules under bench.cli that each provide ``register(subparsers)``.
-SUBCOMMANDS = ["synth", "info", "imu", "score", "accept", "fmu"]
+SUBCOMMANDS = ["synth", "run", "replay", "info", "imu", "score", "accept", "fmu"]
 
 
 def build_parser() -> argparse.ArgumentParser:

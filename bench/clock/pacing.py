@@ -24,8 +24,8 @@ class Clock(ABC):
     lockstep: bool
 
     @abstractmethod
-    def start(self) -> None:
-        """Bench time zero is now."""
+    def start(self, origin_ns: int = 0) -> None:
+        """Bench time ``origin_ns`` is now."""
 
     @abstractmethod
     def wait_until(self, t_ns: int) -> int:
@@ -44,8 +44,8 @@ class LockstepClock(Clock):
     def __init__(self) -> None:
         self._t = 0
 
-    def start(self) -> None:
-        self._t = 0
+    def start(self, origin_ns: int = 0) -> None:
+        self._t = int(origin_ns)
 
     def wait_until(self, t_ns: int) -> int:
         self._t = max(self._t, int(t_ns))
@@ -75,15 +75,17 @@ class RealTimeClock(Clock):
         self.speed = float(speed)
         self.spin_ns = int(spin_ns)
         self._t0 = 0
+        self._origin = 0
 
-    def start(self) -> None:
+    def start(self, origin_ns: int = 0) -> None:
         self._t0 = time.monotonic_ns()
+        self._origin = int(origin_ns)
 
     def _wall(self, t_ns: int) -> int:
-        return self._t0 + int(t_ns / self.speed)
+        return self._t0 + int((t_ns - self._origin) / self.speed)
 
     def now_ns(self) -> int:
-        return int((time.monotonic_ns() - self._t0) * self.speed)
+        return self._origin + int((time.monotonic_ns() - self._t0) * self.speed)
 
     def wait_until(self, t_ns: int) -> int:
         due = self._wall(t_ns)

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import time
 import traceback
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,7 +32,7 @@ import numpy as np
 
 from bench.clock.pacing import LockstepClock, RealTimeClock, TimingLog, TimingSummary
 from bench.dut.estimator import create_estimator
-from bench.errors import BenchError, DutError, LinkError
+from bench.errors import BenchError, ConfigError, DutError, LinkError
 from bench.faults.wire import WIRE_EVENTS_TOPIC
 from bench.record.mcap_io import RecordingWriter
 from bench.record.wire_topics import CAN_TX, SERIAL_TX, declare_wire_topics, write_can, write_serial
@@ -39,11 +40,20 @@ from bench.run.external import ExternalDut
 from bench.run.inprocess import InProcessDut
 from bench.run.output import DutOutputRecorder
 from bench.run.source import RunSource
-from bench.run.spec import RunSpec
+from bench.run.spec import ClockSpec, DutSpec, LinkSpec, RunSpec
 from bench.run.traffic import BENCH_TIME_ID, Traffic, TrafficEncoder
 from bench.runinfo import host_metadata, parse_epoch
 
-__all__ = ["RunResult", "run", "TimingBudgetError", "TIMING_TOPIC", "COMMANDS_TOPIC"]
+__all__ = [
+    "RunResult",
+    "run",
+    "execute",
+    "TrafficProvider",
+    "SynthProvider",
+    "TimingBudgetError",
+    "TIMING_TOPIC",
+    "COMMANDS_TOPIC",
+]
 
 TIMING_TOPIC = "/bench/timing"
 COMMANDS_TOPIC = "/bench/commands"
@@ -86,43 +96,133 @@ def _status_of(exc: BaseException) -> str:
     return "error"
 
 
+class TrafficProvider(ABC):
+    """Where a run's outgoing traffic comes from, window by window.
+
+    :class:`SynthProvider` synthesizes it from a scenario (truth, sensors, ICD encoding,
+    wire faults); the replay providers of :mod:`bench.run.replay` read it from a recording
+    or from field logs. A provider declares and writes its own topics (truth, samples,
+    faults) and returns the traffic due in each window.
+    """
+
+    duration_ns: int
+    epoch_ns: int
+    #: Bench time the run starts at (a replay may seek); traffic at exactly this time is due.
+    start_ns: int = 0
+
+    @abstractmethod
+    def metadata(self) -> dict[str, str]:
+        """Facts of the source for ``run_start``."""
+
+    @abstractmethod
+    def declare(self, rec: RecordingWriter) -> None:
+        """Declare topics and write the once-per-run records."""
+
+    @abstractmethod
+    def window(self, rec: RecordingWriter, t0_ns: int, t1_ns: int) -> Traffic:
+        """Record what the source records for ``(t0, t1]`` and return the traffic due then."""
+
+    def counts(self) -> dict[str, int]:
+        """Samples written per topic."""
+        return {}
+
+
+class SynthProvider(TrafficProvider):
+    """Traffic synthesized from a :class:`RunSpec`'s scenario, sensors and faults."""
+
+    def __init__(self, spec: RunSpec):
+        self.spec = spec
+        self.source = RunSource(
+            spec.scenario,
+            spec.tables,
+            spec.seed,
+            spec.schedule,
+            trajectory=spec.trajectory,
+            truth_rate_hz=spec.truth_rate_hz,
+            duration_ns=spec.duration_ns,
+            write_ideal=spec.write_ideal,
+        )
+        self.epoch_ns = parse_epoch(spec.scenario.meta.get("start_utc"), file=str(spec.scenario.path))
+        self.encoder = TrafficEncoder(
+            self.source.models,
+            epoch_ns=self.epoch_ns,
+            lockstep=spec.clock.lockstep,
+            schedule=spec.schedule,
+            seed=spec.seed,
+            commands=spec.commands,
+            talker=spec.links.talker,
+        )
+        self.duration_ns = self.source.duration_ns
+
+    def metadata(self) -> dict[str, str]:
+        return self.source.metadata()
+
+    def declare(self, rec: RecordingWriter) -> None:
+        attach = not any(a[0].startswith("scenario/") for a in self.spec.attachments)
+        self.source.declare(rec, attach_scenario=attach)
+        rec.json_topic(COMMANDS_TOPIC, "bench.Command", {"type": "object"})
+        for t, c in self.spec.commands:
+            rec.write_json(COMMANDS_TOPIC, t, {"t_ns": t, "command": _COMMAND_NAMES.get(c, str(c)), "code": c})
+
+    def window(self, rec: RecordingWriter, t0_ns: int, t1_ns: int) -> Traffic:
+        return self.encoder.window(self.source.produce(rec, t0_ns, t1_ns), t0_ns, t1_ns)
+
+    def counts(self) -> dict[str, int]:
+        return dict(self.source.stats.counts)
+
+
 def run(spec: RunSpec, progress: Callable[[float, float], None] | None = None) -> RunResult:
-    """Execute one run (see the module docstring); never raises for a failed DUT or link.
+    """Execute one synthesized run (see the module docstring); never raises for a failed
+    DUT or link.
 
     Raises
     ------
     ConfigError
         Before any recording is written, when the spec cannot be run as written.
     """
-    started = time.perf_counter()
     spec.check()
-    source = RunSource(
-        spec.scenario,
-        spec.tables,
-        spec.seed,
-        spec.schedule,
-        trajectory=spec.trajectory,
-        truth_rate_hz=spec.truth_rate_hz,
-        duration_ns=spec.duration_ns,
-        write_ideal=spec.write_ideal,
+    provider = SynthProvider(spec)
+    return execute(
+        provider,
+        spec.dut,
+        spec.links,
+        spec.clock,
+        spec.out,
+        run_start=spec.run_start,
+        attachments=spec.attachments,
+        window_ns=spec.window_ns,
+        progress=progress,
     )
-    if spec.dut.kind == "in_process":
-        estimator = create_estimator(str(spec.dut.name), spec.dut.config)
-    epoch = parse_epoch(spec.scenario.meta.get("start_utc"), file=str(spec.scenario.path))
-    lockstep = spec.clock.lockstep
-    enc = TrafficEncoder(
-        source.models,
-        epoch_ns=epoch,
-        lockstep=lockstep,
-        schedule=spec.schedule,
-        seed=spec.seed,
-        commands=spec.commands,
-        talker=spec.links.talker,
-    )
-    clock = LockstepClock() if lockstep else RealTimeClock(spec.clock.speed)
+
+
+def execute(
+    provider: TrafficProvider,
+    dut: DutSpec,
+    links: LinkSpec,
+    clock_spec: ClockSpec,
+    out_path: Path,
+    *,
+    run_start: dict | None = None,
+    attachments: list[tuple[str, bytes, str]] | None = None,
+    window_ns: int = 10_000_000_000,
+    progress: Callable[[float, float], None] | None = None,
+) -> RunResult:
+    """The engine loop: traffic from ``provider`` to the DUT, everything recorded.
+
+    The run starts at ``provider.start_ns`` (a whole number of steps; a replay may seek),
+    where the DUT's first step and its start-up handshake are.
+    """
+    started = time.perf_counter()
+    dut.check()
+    clock_spec.check()
+    if dut.kind == "in_process":
+        estimator = create_estimator(str(dut.name), dut.config)
+    epoch = provider.epoch_ns
+    lockstep = clock_spec.lockstep
+    clock = LockstepClock() if lockstep else RealTimeClock(clock_spec.speed)
     timing = TimingLog()
-    result = RunResult(Path(spec.out), "complete")
-    rec = RecordingWriter(spec.out, epoch_ns=epoch)
+    result = RunResult(Path(out_path), "complete")
+    rec = RecordingWriter(out_path, epoch_ns=epoch)
     dut_in: InProcessDut | None = None
     dut_ext: ExternalDut | None = None
     out: DutOutputRecorder | None = None
@@ -133,20 +233,20 @@ def run(spec: RunSpec, progress: Callable[[float, float], None] | None = None) -
             "run_start",
             {
                 "kind": "run",
-                **spec.run_start,
-                **source.metadata(),
-                "clock": spec.clock.mode,
-                "clock_step_ms": f"{spec.clock.step_ns / 1e6:g}",
-                "speed": f"{spec.clock.speed:g}",
-                "dut": spec.dut.name or spec.dut.command or spec.dut.kind,
-                "dut_kind": spec.dut.kind,
+                **(run_start or {}),
+                **provider.metadata(),
+                "clock": clock_spec.mode,
+                "clock_step_ms": f"{clock_spec.step_ns / 1e6:g}",
+                "speed": f"{clock_spec.speed:g}",
+                "dut": dut.name or dut.command or dut.kind,
+                "dut_kind": dut.kind,
                 "epoch_utc_ns": str(epoch),
                 **host_metadata(),
             },
         )
-        for name, data, media in spec.attachments:
+        for name, data, media in attachments or []:
             rec.attach(name, data, media)
-        source.declare(rec, attach_scenario=not any(a[0].startswith("scenario/") for a in spec.attachments))
+        provider.declare(rec)
         declare_wire_topics(rec)
         rec.columnar_topic(
             WIRE_EVENTS_TOPIC.topic,
@@ -155,9 +255,6 @@ def run(spec: RunSpec, progress: Callable[[float, float], None] | None = None) -
             description=WIRE_EVENTS_TOPIC.description,
             units=WIRE_EVENTS_TOPIC.units,
         )
-        rec.json_topic(COMMANDS_TOPIC, "bench.Command", {"type": "object"})
-        for t, c in spec.commands:
-            rec.write_json(COMMANDS_TOPIC, t, {"t_ns": t, "command": _COMMAND_NAMES.get(c, str(c)), "code": c})
         if not lockstep:
             rec.columnar_topic(
                 TIMING_TOPIC,
@@ -167,27 +264,33 @@ def run(spec: RunSpec, progress: Callable[[float, float], None] | None = None) -
                 units={"t_ns": "ns", "lateness_ns": "ns"},
             )
         out = DutOutputRecorder(rec)
-        if spec.dut.kind == "in_process":
+        if dut.kind == "in_process":
             dut_in = InProcessDut(estimator, epoch)
         else:
-            dut_ext = ExternalDut(spec.dut, spec.links, enc.encoder, lockstep=lockstep, on_lines=out.log)
-        step = spec.clock.step_ns
-        total = source.duration_ns - source.duration_ns % step  # the run ends on a step
-        clock.start()
-        t0 = 0
+            dut_ext = ExternalDut(dut, links, lockstep=lockstep, on_lines=out.log)
+        start_ns = provider.start_ns
+        step = clock_spec.step_ns
+        total = provider.duration_ns - provider.duration_ns % step  # the run ends on a step
+        if start_ns % step or not 0 <= start_ns < total:
+            raise ConfigError(
+                f"the start {start_ns / 1e9:g} s must be a whole number of steps within the run "
+                f"(0 .. {total / 1e9:g} s)",
+                key="start",
+            )
+        clock.start(start_ns)
+        t0 = start_ns
         while t0 < total:
-            t1 = min(t0 + spec.window_ns, total)
-            records = source.produce(rec, t0, t1)
-            traffic = enc.window(records, t0, t1)
+            t1 = min(t0 + window_ns, total)
+            traffic = provider.window(rec, t0, t1)
             write_can(rec, CAN_TX, traffic.can)
             write_serial(rec, SERIAL_TX["imu"], traffic.imu)
             write_serial(rec, SERIAL_TX["gnss"], traffic.gnss)
             if len(traffic.events):
                 rec.write_block(WIRE_EVENTS_TOPIC.topic, traffic.events)
-            if dut_ext is not None and t0 == 0:
+            if dut_ext is not None and t0 == start_ns:
                 first = traffic.can.take(np.flatnonzero(traffic.can.can_id == BENCH_TIME_ID)[:1])
                 dut_ext.start(first, out.feed, lambda frames: write_can(rec, CAN_TX, frames))
-            k0 = 0 if t0 == 0 else t0 // step + 1
+            k0 = t0 // step if t0 == start_ns else t0 // step + 1
             step_times = np.arange(k0, t1 // step + 1, dtype=np.int64) * step
             if dut_in is not None:
                 if lockstep:
@@ -196,10 +299,11 @@ def run(spec: RunSpec, progress: Callable[[float, float], None] | None = None) -
                     for k, part in enumerate(_steps_of(traffic, step_times)):
                         t = int(step_times[k])
                         timing.add(t, clock.wait_until(t))
-                        out.feed(dut_in.exchange(part, step_times[k : k + 1], int(step_times[k - 1]) + 1 if k else t0))
+                        lo = int(step_times[k - 1]) + 1 if k else t0
+                        out.feed(dut_in.exchange(part, step_times[k : k + 1], lo))
             elif lockstep:
                 assert dut_ext is not None
-                dut_ext.exchange_lockstep(traffic, step_times, spec.clock.timeout_s, out.feed)
+                dut_ext.exchange_lockstep(traffic, step_times, clock_spec.timeout_s, out.feed)
             else:
                 assert dut_ext is not None
                 dut_ext.exchange_realtime(traffic, clock, timing, t1, out.feed)
@@ -213,26 +317,24 @@ def run(spec: RunSpec, progress: Callable[[float, float], None] | None = None) -
             t_done = t1
             t0 = t1
             if progress is not None:
-                progress(t0 * 1e-9, total * 1e-9)
-        if not lockstep and spec.clock.budget is not None:
+                progress((t0 - start_ns) * 1e-9, (total - start_ns) * 1e-9)
+        if not lockstep and clock_spec.budget is not None:
             summary = TimingLog.summarize(np.concatenate(lateness) if lateness else np.zeros(0, np.int64))
-            if not summary.within(spec.clock.budget):
+            if not summary.within(clock_spec.budget):
                 raise TimingBudgetError(
-                    f"real-time budget missed: {summary.text()} (budget p99 "
-                    f"{spec.clock.budget.p99_ns / 1e3:g} us, max {spec.clock.budget.max_ns / 1e3:g} us)"
+                    f"real-time budget missed: {summary.text()} (budget p99 {clock_spec.budget.p99_ns / 1e3:g} us, "
+                    f"max {clock_spec.budget.max_ns / 1e3:g} us)"
                 )
     except BaseException as exc:  # the recording must say how the run ended, whatever happened
         result.status = _status_of(exc)
-        result.reason = f"{type(exc).__name__}: {exc}" if not isinstance(exc, BenchError) else str(exc)
-        if result.status == "error" and not isinstance(exc, BenchError):
-            result.reason += " | " + traceback.format_exc(limit=4).strip().splitlines()[-3].strip()
+        result.reason = str(exc) if isinstance(exc, BenchError) else f"{type(exc).__name__}: {exc}"
         if not isinstance(exc, (BenchError, KeyboardInterrupt)):
             rec.metadata("run_traceback", {"traceback": traceback.format_exc()})
     finally:
         if dut_in is not None:
             try:
                 dut_in.close()
-            except Exception as exc:
+            except Exception as exc:  # the DUT's close must not lose the recording
                 result.reason += f" (estimator close failed: {exc})"
             rec.metadata("dut_input_tally", dut_in.decoder.tally.as_dict())
         if dut_ext is not None:
@@ -256,7 +358,7 @@ def run(spec: RunSpec, progress: Callable[[float, float], None] | None = None) -
                     "max_ns": result.timing.max_ns,
                 },
             )
-        result.counts = dict(source.stats.counts)
+        result.counts = provider.counts()
         result.bench_s = t_done * 1e-9
         result.elapsed_s = time.perf_counter() - started
         rec.metadata(

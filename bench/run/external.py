@@ -35,7 +35,7 @@ from bench.run.traffic import Traffic
 from bench.transport.can_link import CanConfig, CanLink, open_can_link
 from bench.transport.pacing import byte_groups, byte_time_ns
 from bench.transport.serial_link import SerialConfig, SerialLink, open_serial_link
-from bench.wire.can import CanEncoder, codec
+from bench.wire.can import codec
 
 __all__ = ["ExternalDut", "serial_config", "can_config"]
 
@@ -63,8 +63,6 @@ class ExternalDut:
     ----------
     spec, links:
         The DUT and its links.
-    encoder:
-        The bench's CAN encoder (alive counters continue across handshake and traffic).
     lockstep:
         Lockstep mode (BENCH_TIME with the lockstep bit, DUT_READY awaited).
     on_lines:
@@ -75,13 +73,11 @@ class ExternalDut:
         self,
         spec: DutSpec,
         links: LinkSpec,
-        encoder: CanEncoder,
         *,
         lockstep: bool,
         on_lines: Callable[[list[LogLine], int], None] | None = None,
     ):
         self.spec = spec
-        self.encoder = encoder
         self.lockstep = lockstep
         self.on_lines = on_lines
         self.now_ns = 0  # bench time stamped on received frames
@@ -141,12 +137,13 @@ class ExternalDut:
     def start(self, first: CanBatch, received: Callable[[CanBatch], None], sent: Callable[[CanBatch], None]) -> None:
         """Wait until the DUT listens.
 
-        Lockstep: send ``first`` (the run's own BENCH_TIME(0) frame, byte for byte, so the
-        traffic after it is the same whatever the start-up took) every 100 ms until the DUT
-        answers DUT_READY(0), within the start-up timeout. Real time: the process is still
+        Lockstep: send ``first`` (the run's own first BENCH_TIME frame, byte for byte, so
+        the traffic after it is the same whatever the start-up took) every 100 ms until the
+        DUT answers it with DUT_READY, within the start-up timeout. Real time: the process is still
         alive after a short settling time.
         """
         deadline = time.monotonic() + self.spec.startup_timeout_s
+        t_first = int(first.t_ns[0]) if len(first) else 0
         if not self.lockstep:
             time.sleep(min(0.5, self.spec.startup_timeout_s))
             self._check_process()
@@ -159,13 +156,13 @@ class ExternalDut:
             got = self.can.drain(timeout=0.1)
             if len(got):
                 received(got)
-                if self._ready_at_least(got, 0):
+                if self._ready_at_least(got, t_first):
                     self._flush_lines()
                     return
             if time.monotonic() > deadline:
                 self._flush_lines()
                 raise DutError(
-                    f"the DUT did not answer BENCH_TIME(0) with DUT_READY within "
+                    f"the DUT did not answer BENCH_TIME({t_first / 1e9:g} s) with DUT_READY within "
                     f"{self.spec.startup_timeout_s:g} s of its start (ICD 5: listening within 5 s)"
                 )
 

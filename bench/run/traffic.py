@@ -72,6 +72,9 @@ class TrafficEncoder:
         ``(t_ns, code)`` BENCH_CMD events.
     talker:
         NMEA talker (``GB``, ``BD``, ``GN``).
+    topics:
+        Sensor kind (``imu``, ``doppler``, ``odometer``, ``bds``, ``driver``) -> the topic
+        its records come on, for records not produced by ``models`` (replay).
     """
 
     def __init__(
@@ -86,6 +89,7 @@ class TrafficEncoder:
         talker: str = "GB",
         bench_time_period_ns: int = 10_000_000,
         epoch_period_ns: int = 1_000_000_000,
+        topics: dict[str, str] | None = None,
     ):
         self.epoch_ns = int(epoch_ns)
         self.lockstep = lockstep
@@ -98,8 +102,7 @@ class TrafficEncoder:
         self._faulty = any(w.layer == "wire" for w in schedule)
         self._imu_counter = 0
         self._held_gnss = SerialBatch.empty()
-        self._topic: dict[str, str] = {}
-        self.outage_styles: dict[int, int] = {}
+        self._topic: dict[str, str] = dict(topics or {})
         for m in models:
             base = m.imu if isinstance(m, FaultyImu) else m
             for cls, kind in (

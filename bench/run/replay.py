@@ -1,0 +1,223 @@
+"""Replay: an earlier run's traffic re-emitted into the links, or a field recording's.
+
+:class:`RecordingReplay` takes a bench recording. Without a new fault schedule it
+re-emits the recorded frames and bytes as they went out, frame for frame (BENCH_TIME
+frames are rebuilt only when the clock mode changes the lockstep bit). With a new
+schedule it re-encodes the recorded sensor samples (after the original sensor faults,
+which live in the samples) and applies the new wire faults instead of the old ones. The
+recorded truth, samples, segments and fault windows are copied into the new recording,
+so the replayed run is scored like the original.
+
+:class:`LogReplay` (:mod:`bench.run.logreplay`) takes field logs: a python-can log
+(ASC, BLF) with the sensor messages and byte logs of the IMU and GNSS lines.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.errors import ConfigError, RecordingError
+from bench.faults.schedule import FAULT_JSON_SCHEMA, FAULT_TOPIC, FaultSchedule, FaultWindow
+from bench.faults.wire import WIRE_EVENT_DTYPE
+from bench.frames import CanBatch, SerialBatch
+from bench.record.mcap_io import COLUMNAR, RecordingReader, RecordingWriter
+from bench.record.wire_topics import CAN_TX, SERIAL_TX, read_can, read_serial
+from bench.run.engine import COMMANDS_TOPIC, TrafficProvider
+from bench.run.source import SEGMENTS_TOPIC
+from bench.run.traffic import BENCH_TIME_ID, Traffic, TrafficEncoder, _ordered
+from bench.wire.can import CanEncoder, codec
+
+__all__ = ["RecordingReplay"]
+
+_SAMPLE_KINDS = ("imu", "doppler", "odometer", "bds", "driver")
+_COPIED_JSON = (SEGMENTS_TOPIC, COMMANDS_TOPIC)
+
+
+def _slice_can(batch: CanBatch, t0: int, t1: int, first: bool) -> CanBatch:
+    lo = np.searchsorted(batch.t_ns, t0, side="left" if first else "right")
+    hi = np.searchsorted(batch.t_ns, t1, side="right")
+    return batch.take(np.arange(lo, hi))
+
+
+def _slice_serial(batch: SerialBatch, t0: int, t1: int, first: bool) -> SerialBatch:
+    lo = np.searchsorted(batch.t_ns, t0, side="left" if first else "right")
+    hi = np.searchsorted(batch.t_ns, t1, side="right")
+    return batch.take(np.arange(lo, hi))
+
+
+class RecordingReplay(TrafficProvider):
+    """The traffic of a bench recording (see the module docstring).
+
+    Parameters
+    ----------
+    path:
+        The recording.
+    lockstep:
+        Clock mode of the replay (BENCH_TIME's lockstep bit).
+    faults:
+        A new fault schedule (wire layer only); None replays the frames as recorded.
+    seed:
+        Seed of the new wire faults (default: the original run's).
+    start_ns:
+        Seek: replay from this bench time on (a whole number of scheduler steps).
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        lockstep: bool,
+        faults: FaultSchedule | None = None,
+        seed: int | None = None,
+        start_ns: int = 0,
+    ):
+        self.path = Path(path)
+        self.start_ns = int(start_ns)
+        self.reader = RecordingReader(self.path)
+        md = self.reader.metadata()
+        start = md.get("run_start", {})
+        if not start:
+            raise RecordingError(f"{self.path}: no run_start metadata: not a bench recording")
+        self.run_start = start
+        self.topics = self.reader.topics()
+        if CAN_TX not in self.topics and faults is None:
+            raise RecordingError(
+                f"{self.path}: no {CAN_TX}: a synth recording has samples but no traffic; "
+                "replay it with a fault schedule (even an empty one) to encode the samples"
+            )
+        self.epoch_ns = int(start.get("epoch_utc_ns", 0))
+        self.seed = int(seed if seed is not None else start.get("seed", 0))
+        self.lockstep = lockstep
+        self.faults = faults
+        self._columns: dict[str, np.ndarray] = {}
+        for name, info in self.topics.items():
+            if (
+                info.encoding == COLUMNAR
+                and info.messages
+                and not name.startswith(("/wire/", "/dut/", "/bench/", "/faults/wire"))
+            ):
+                self._columns[name] = self.reader.read_columnar(name)
+        self._json = {t: list(self.reader.iter_json(t)) for t in _COPIED_JSON if t in self.topics}
+        self._schemas = {name: self.topics[name].schema for name in self._columns}
+        original = (
+            [FaultWindow.from_json(d) for _, d in self.reader.iter_json(FAULT_TOPIC)]
+            if (FAULT_TOPIC in self.topics)
+            else []
+        )
+        if faults is None:
+            self.windows = original
+            self._traffic = self._recorded_traffic()
+            self.encoder = None
+        else:
+            bad = [w for w in faults if w.layer != "wire"]
+            if bad:
+                raise ConfigError(
+                    f"fault {bad[0].id} ({bad[0].kind} on {bad[0].target}) acts on a sensor; a replay "
+                    "re-emits recorded samples and can only add wire faults",
+                    key="fault",
+                )
+            keep = [w for w in original if w.layer != "wire"]
+            first_id = max((w.id for w in keep), default=-1) + 1
+            new = [
+                FaultWindow(first_id + i, w.layer, w.target, w.kind, w.start_ns, w.end_ns, w.params)
+                for i, w in enumerate(faults)
+            ]
+            self.windows = keep + new
+            sensor_topics = {k: f"/{k}" for k in _SAMPLE_KINDS if f"/{k}" in self._columns}
+            commands = [(int(d["t_ns"]), int(d["code"])) for _, d in self._json.get(COMMANDS_TOPIC, [])]
+            self.encoder = TrafficEncoder(
+                [],
+                epoch_ns=self.epoch_ns,
+                lockstep=lockstep,
+                schedule=FaultSchedule(new),
+                seed=self.seed,
+                commands=commands,
+                topics=sensor_topics,
+            )
+            self._traffic = None
+        span = [int(v["t_ns"].max()) for v in self._columns.values() if len(v)]
+        if self._traffic is not None and len(self._traffic[0]):
+            span.append(int(self._traffic[0].t_ns.max()))
+        self.duration_ns = round(float(start.get("duration_s", 0)) * 1e9) or (max(span) if span else 0)
+
+    def _recorded_traffic(self) -> tuple[CanBatch, SerialBatch, SerialBatch]:
+        can = read_can(self.reader, CAN_TX)
+        can = can.take(np.argsort(can.t_ns, kind="stable"))
+        # the start-up handshake repeats the first BENCH_TIME byte for byte: keep one copy
+        if len(can):
+            same = np.zeros(len(can), bool)
+            bt = np.flatnonzero(can.can_id == BENCH_TIME_ID)
+            if bt.size > 1:
+                first = can.data[bt[0]]
+                dup = bt[1:][(can.t_ns[bt[1:]] == can.t_ns[bt[0]]) & np.all(can.data[bt[1:]] == first, axis=1)]
+                same[dup] = True
+            can = can.take(~same)
+        can = _ordered(can)
+        if not self.lockstep or self.run_start.get("clock") != "lockstep":
+            can = self._rebuild_bench_time(can)
+        return can, read_serial(self.reader, SERIAL_TX["imu"]), read_serial(self.reader, SERIAL_TX["gnss"])
+
+    def _rebuild_bench_time(self, can: CanBatch) -> CanBatch:
+        """BENCH_TIME frames with this replay's lockstep bit (when the clock mode changed)."""
+        sel = np.flatnonzero(can.can_id == BENCH_TIME_ID)
+        if sel.size == 0:
+            return can
+        c = codec("BENCH_TIME")
+        values, _ = c.decode(can.take(sel))
+        want = int(self.lockstep)
+        if np.all(values["lockstep"] == want):
+            return can
+        rebuilt = CanEncoder().encode(
+            "BENCH_TIME", can.t_ns[sel], time_ns=values["time_ns"], lockstep=np.full(sel.size, want)
+        )
+        data = can.data.copy()
+        data[sel, :8] = rebuilt.data[:, :8]
+        return CanBatch(can.t_ns, can.can_id, data, can.length, can.fd)
+
+    def metadata(self) -> dict[str, str]:
+        keep = ("scenario", "scenario_title", "seed", "imu_rate_hz", "imu_grade", "truth_rate_hz", "case")
+        return {
+            "replay_of": str(self.path),
+            "replay_mode": "verbatim" if self.faults is None else "re-encoded",
+            **{k: str(self.run_start[k]) for k in keep if k in self.run_start},
+        }
+
+    def declare(self, rec: RecordingWriter) -> None:
+        for name, schema in self._schemas.items():
+            rec.columnar_topic(name, schema, self._columns[name].dtype, description=f"copied from {self.path.name}")
+        for topic, msgs in self._json.items():
+            rec.json_topic(topic, self.topics[topic].schema, {"type": "object"})
+            for t_log, doc in msgs:
+                rec.write_json(topic, t_log - self.epoch_ns, doc)
+        rec.json_topic(FAULT_TOPIC, "bench.FaultWindow", FAULT_JSON_SCHEMA)
+        for w in self.windows:
+            rec.write_json(FAULT_TOPIC, w.start_ns, w.to_json())
+        for name, data in self.reader.attachments().items():
+            rec.attach(name, data, "application/toml" if name.endswith(".toml") else "application/octet-stream")
+
+    def window(self, rec: RecordingWriter, t0_ns: int, t1_ns: int) -> Traffic:
+        first = t0_ns == self.start_ns
+        records: dict[str, Any] = {}
+        for name, arr in self._columns.items():
+            t = arr["t_ns"]
+            lo = np.searchsorted(t, t0_ns, side="left" if first else "right")
+            hi = np.searchsorted(t, t1_ns, side="right")
+            part = arr[lo:hi]
+            rec.write_block(name, part)
+            records[name] = part
+        if self._traffic is not None:
+            can, imu, gnss = self._traffic
+            return Traffic(
+                _slice_can(can, t0_ns, t1_ns, first),
+                _slice_serial(imu, t0_ns, t1_ns, first),
+                _slice_serial(gnss, t0_ns, t1_ns, first),
+                np.zeros(0, WIRE_EVENT_DTYPE),
+            )
+        assert self.encoder is not None
+        return self.encoder.window(records, t0_ns, t1_ns)
+
+    def counts(self) -> dict[str, int]:
+        return {k: len(v) for k, v in self._columns.items()}
