@@ -62,22 +62,32 @@ class Harness:
         self.imu.close()
         self.gnss.close()
 
-    def _read_serial(self) -> None:
+    def _read_serial(self) -> int:
+        """Read and decode what the serial lines hold; returns the bytes read."""
         from bench.frames import SerialBatch
 
+        total = 0
         for link, name in ((self.imu, "imu"), (self.gnss, "gnss")):
             data = link.read(0.0, 1 << 20)
             if not data:
                 continue
+            total += len(data)
             batch = SerialBatch(np.array([0]), np.array([0, len(data)]), data)
             if name == "imu":
                 self._imu = np.concatenate([self._imu, self.decoder.feed(imu=batch).imu])
             else:
                 self._gnss = np.concatenate([self._gnss, self.decoder.feed(gnss=batch).gnss])
+        return total
 
-    def poll(self, timeout: float = 0.05) -> None:
-        """Receive what is pending and handle every BENCH_TIME in it."""
-        got = self.can.drain(timeout=timeout)
+    def poll(self, timeout: float = 0.005) -> None:
+        """Receive what is pending and handle every BENCH_TIME in it.
+
+        The serial lines are read on every call, not only at a BENCH_TIME: in lockstep a
+        coarse step puts more bytes on a line than a pty buffers, and the bench's write
+        waits for this side to read them before it sends the step's BENCH_TIME.
+        """
+        serial = self._read_serial()
+        got = self.can.drain(timeout=0.0 if serial else timeout)
         if len(got) == 0:
             return
         frames = CanBatch.concat([self._carry, got]) if len(self._carry) else got
