@@ -34,6 +34,7 @@ from bench.clock.pacing import LockstepClock, RealTimeClock, TimingLog, TimingSu
 from bench.dut.estimator import create_estimator
 from bench.errors import BenchError, ConfigError, DutError, LinkError
 from bench.faults.wire import WIRE_EVENTS_TOPIC
+from bench.frames import CanBatch
 from bench.record.mcap_io import RecordingWriter
 from bench.record.wire_topics import CAN_TX, SERIAL_TX, declare_wire_topics, write_can, write_serial
 from bench.run.external import ExternalDut
@@ -277,47 +278,77 @@ def execute(
                 f"(0 .. {total / 1e9:g} s)",
                 key="start",
             )
-        clock.start(start_ns)
+        windows = []
         t0 = start_ns
         while t0 < total:
             t1 = min(t0 + window_ns, total)
+            windows.append((t0, t1))
+            t0 = t1
+
+        def prepare(t0: int, t1: int) -> tuple[Traffic, np.ndarray]:
             traffic = provider.window(rec, t0, t1)
             write_can(rec, CAN_TX, traffic.can)
             write_serial(rec, SERIAL_TX["imu"], traffic.imu)
             write_serial(rec, SERIAL_TX["gnss"], traffic.gnss)
             if len(traffic.events):
                 rec.write_block(WIRE_EVENTS_TOPIC.topic, traffic.events)
-            if dut_ext is not None and t0 == start_ns:
-                first = traffic.can.take(np.flatnonzero(traffic.can.can_id == BENCH_TIME_ID)[:1])
-                dut_ext.start(first, out.feed, lambda frames: write_can(rec, CAN_TX, frames))
             k0 = t0 // step if t0 == start_ns else t0 // step + 1
-            step_times = np.arange(k0, t1 // step + 1, dtype=np.int64) * step
-            if dut_in is not None:
-                if lockstep:
-                    out.feed(dut_in.exchange(traffic, step_times, t0))
+            return traffic, np.arange(k0, t1 // step + 1, dtype=np.int64) * step
+
+        def report(t1: int) -> None:
+            if progress is not None:
+                progress((t1 - start_ns) * 1e-9, (total - start_ns) * 1e-9)
+
+        if lockstep:
+            clock.start(start_ns)
+            for t0, t1 in windows:
+                traffic, step_times = prepare(t0, t1)
+                if dut_ext is not None:
+                    if t0 == start_ns:
+                        first = traffic.can.take(np.flatnonzero(traffic.can.can_id == BENCH_TIME_ID)[:1])
+                        dut_ext.start(first, out.feed, lambda frames: write_can(rec, CAN_TX, frames))
+                    dut_ext.exchange_lockstep(traffic, step_times, clock_spec.timeout_s, out.feed)
                 else:
-                    for k, part in enumerate(_steps_of(traffic, step_times)):
+                    assert dut_in is not None
+                    out.feed(dut_in.exchange(traffic, step_times, t0))
+                t_done = t1
+                report(t1)
+        else:
+            # real time: everything is prepared (and its samples recorded) before the clock
+            # starts, and the DUT's frames are decoded and recorded when there is slack, so
+            # the emission loop does nothing but wait and send
+            plans = []
+            for t0, t1 in windows:
+                traffic, step_times = prepare(t0, t1)
+                if dut_ext is not None:
+                    plans.append((t0, t1, dut_ext.plan_realtime(traffic), step_times))
+                else:
+                    plans.append((t0, t1, _steps_of(traffic, step_times), step_times))
+            if dut_ext is not None:
+                dut_ext.start(CanBatch.empty(), out.feed, lambda frames: None)
+            out.deferred = True
+            idle = lambda slack: out.process(4)  # noqa: E731 - a few batches per slack moment
+            clock.start(start_ns)
+            for t0, t1, plan, step_times in plans:
+                if dut_ext is not None:
+                    dut_ext.exchange_realtime(plan, clock, timing, t1, out.feed, idle)
+                else:
+                    assert dut_in is not None
+                    for k, part in enumerate(plan):
                         t = int(step_times[k])
                         timing.add(t, clock.wait_until(t))
                         lo = int(step_times[k - 1]) + 1 if k else t0
                         out.feed(dut_in.exchange(part, step_times[k : k + 1], lo))
-            elif lockstep:
-                assert dut_ext is not None
-                dut_ext.exchange_lockstep(traffic, step_times, clock_spec.timeout_s, out.feed)
-            else:
-                assert dut_ext is not None
-                dut_ext.exchange_realtime(traffic, clock, timing, t1, out.feed)
-            if not lockstep:
-                t_late, late = timing.take()
-                if len(t_late):
-                    block = np.zeros(len(t_late), TIMING_DTYPE)
-                    block["t_ns"], block["lateness_ns"] = t_late, late
-                    rec.write_block(TIMING_TOPIC, block)
-                    lateness.append(late)
-            t_done = t1
-            t0 = t1
-            if progress is not None:
-                progress((t0 - start_ns) * 1e-9, (total - start_ns) * 1e-9)
+                t_done = t1
+                report(t1)
+            out.deferred = False
+            out.process()
+            t_late, late = timing.take()
+            if len(t_late):
+                block = np.zeros(len(t_late), TIMING_DTYPE)
+                block["t_ns"], block["lateness_ns"] = t_late, late
+                rec.write_block(TIMING_TOPIC, block)
+                lateness.append(late)
         if not lockstep and clock_spec.budget is not None:
             summary = TimingLog.summarize(np.concatenate(lateness) if lateness else np.zeros(0, np.int64))
             if not summary.within(clock_spec.budget):
@@ -341,7 +372,15 @@ def execute(
             result.dut_exit = dut_ext.close()
             rec.metadata("dut_exit", result.dut_exit)
         if out is not None:
+            out.deferred = False
+            out.process()  # frames received before a real-time run stopped
             out.write_bad()
+        t_late, late = timing.take()
+        if len(t_late):
+            block = np.zeros(len(t_late), TIMING_DTYPE)
+            block["t_ns"], block["lateness_ns"] = t_late, late
+            rec.write_block(TIMING_TOPIC, block)
+            lateness.append(late)
             rec.metadata(
                 "dut_output",
                 {"solutions": out.solutions, "qualities": out.qualities, "bad_frames": out.tally.as_dict()},

@@ -22,6 +22,7 @@ import json
 import tempfile
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +30,7 @@ import numpy as np
 from bench.clock.pacing import Clock, TimingLog
 from bench.dut.process import DutProcess, LogLine, describe_exit, fill_placeholders
 from bench.errors import ConfigError, DutError
-from bench.frames import CanBatch
+from bench.frames import CanBatch, CanFrame
 from bench.run.spec import DutSpec, LinkSpec
 from bench.run.traffic import Traffic
 from bench.transport.can_link import CanConfig, CanLink, open_can_link
@@ -37,9 +38,23 @@ from bench.transport.pacing import byte_groups, byte_time_ns
 from bench.transport.serial_link import SerialConfig, SerialLink, open_serial_link
 from bench.wire.can import codec
 
-__all__ = ["ExternalDut", "serial_config", "can_config"]
+__all__ = ["ExternalDut", "RealtimePlan", "serial_config", "can_config"]
 
 _READY = codec("DUT_READY")
+
+
+@dataclass
+class RealtimePlan:
+    """One window's emissions in time order (prepared before the clock starts): the link
+    of each (0 CAN, 1 imu, 2 gnss), its due time and its index into ``can`` (frames) or
+    ``imu``/``gnss`` (byte groups paced at the line's baud)."""
+
+    kinds: list[int]
+    times: list[int]
+    index: list[int]
+    can: list[CanFrame]
+    imu: list[bytes]
+    gnss: list[bytes]
 
 
 def serial_config(table: dict, key: str, default_baud: int) -> SerialConfig:
@@ -229,33 +244,42 @@ class ExternalDut:
                 )
 
     # ------------------------------------------------------------------ real time
-    def exchange_realtime(
-        self, traffic: Traffic, clock: Clock, timing: TimingLog, end_ns: int, received: Callable[[CanBatch], None]
-    ) -> None:
-        """Emit one window's traffic on the clock, receiving as it goes."""
-        assert self.can is not None
+    def plan_realtime(self, traffic: Traffic) -> RealtimePlan:
+        """Prepare one window's emissions before the clock starts (real time)."""
         kinds, times, index = self._schedule(traffic)
-        can = traffic.can
         i_buf, g_buf = self._groups
+        return RealtimePlan(kinds.tolist(), times.tolist(), index.tolist(), traffic.can.frames(), i_buf, g_buf)
+
+    def exchange_realtime(
+        self,
+        plan: RealtimePlan,
+        clock: Clock,
+        timing: TimingLog,
+        end_ns: int,
+        received: Callable[[CanBatch], None],
+        idle: Callable[[int], None] | None = None,
+    ) -> None:
+        """Emit one window's traffic on the clock, receiving as it goes; ``idle(slack_ns)``
+        is called when the next emission is far enough away to do other work."""
+        assert self.can is not None
+        send_can, write_imu, write_gnss = self.can.send, self.serial["imu"].write, self.serial["gnss"].write
         flood = int(self.spec.flood_frames_per_s * max(1e-9 * (end_ns - self.now_ns), 0.01)) + 100
         n_rx = 0
         k = 0
+        times, kinds, index = plan.times, plan.kinds, plan.index
         n = len(times)
         while k < n:
-            t = int(times[k])
-            late = clock.wait_until(t)
-            timing.add(t, late)
-            j = k
-            while j < n and times[j] == t:
-                kind, i = kinds[j], index[j]
+            t = times[k]
+            timing.add(t, clock.wait_until(t))
+            while k < n and times[k] == t:
+                kind, i = kinds[k], index[k]
                 if kind == 0:
-                    self.can.send_many(can.take(np.array([i])))
+                    send_can(plan.can[i])
                 elif kind == 1:
-                    self.serial["imu"].write(i_buf[i])
+                    write_imu(plan.imu[i])
                 else:
-                    self.serial["gnss"].write(g_buf[i])
-                j += 1
-            k = j
+                    write_gnss(plan.gnss[i])
+                k += 1
             self.now_ns = clock.now_ns()
             got = self.can.drain(timeout=0.0)
             if len(got):
@@ -263,6 +287,10 @@ class ExternalDut:
                 received(got)
                 if n_rx > flood:
                     raise DutError(f"the DUT floods the bus: {n_rx} frames in one window (limit {flood})")
+            if idle is not None and k < n:
+                slack = times[k] - clock.now_ns()
+                if slack > 5_000_000:
+                    idle(slack)
         clock.wait_until(end_ns)
         self.now_ns = clock.now_ns()
         got = self.can.drain(timeout=0.0)

@@ -51,6 +51,10 @@ class DutOutputRecorder:
         self.receiver = NavReceiver(tally=self.tally)
         self.display_period_ns = display_period_ns
         self._next_display = 0
+        #: When True, :meth:`feed` only keeps the frames; :meth:`process` decodes and records
+        #: them later (real-time runs keep recording work out of the emission loop).
+        self.deferred = False
+        self._pending: list[CanBatch] = []
         self.solutions = 0
         self.qualities = 0
         self.last_ready_ns = -1
@@ -84,6 +88,19 @@ class DutOutputRecorder:
         """Record and decode a batch of received frames (``t_ns`` = arrival, bench time)."""
         if len(frames) == 0:
             return
+        if self.deferred:
+            self._pending.append(frames)
+            return
+        self._record(frames)
+
+    def process(self, max_batches: int | None = None) -> None:
+        """Decode and record deferred frames (all, or the first ``max_batches`` batches)."""
+        n = len(self._pending) if max_batches is None else min(max_batches, len(self._pending))
+        if n:
+            batch, self._pending = self._pending[:n], self._pending[n:]
+            self._record(CanBatch.concat(batch))
+
+    def _record(self, frames: CanBatch) -> None:
         write_can(self.rec, CAN_RX, frames)
         out = self.receiver.feed(frames)
         if len(out.solutions):

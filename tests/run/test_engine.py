@@ -1,0 +1,201 @@
+"""The run engine end to end: in process and as an external process over pty + CAN,
+lockstep and real time, determinism, replay, wire faults seen by the DUT."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bench.faults.schedule import FaultSchedule, parse_schedule
+from bench.record.mcap_io import RecordingReader
+from bench.run.engine import execute, run
+from bench.run.replay import RecordingReplay
+from bench.run.spec import ClockSpec, DutSpec, LinkSpec, RunSpec
+from bench.run.traffic import BENCH_TIME_ID
+from bench.scenario.loader import load_scenario
+from bench.sensors.suite import load_fault_kinds
+from tests.transport import netns
+
+DATA = Path(__file__).parent.parent / "data"
+SHORT = DATA / "short_drive.toml"
+DR = {"initial_position": [34.246, 108.909, 380.0], "alignment": "4 s"}
+TABLES = {"imu": {"grade": "navigation", "rate": "200 Hz"}, "doppler": {"model": "seed000"},
+          "odometer": {"model": "typical_wheeled"}, "bds": {"model": "seed001", "latency": "80 ms"},
+          "driver": {"vehicle": "wheeled"}}
+
+
+def _spec(out: Path, *, seed: int = 1, dut: DutSpec | None = None, clock: ClockSpec | None = None,
+          schedule: FaultSchedule | None = None, duration_s: float | None = None, **kw) -> RunSpec:
+    sc = load_scenario(SHORT)
+    return RunSpec(scenario=sc, tables=TABLES, schedule=schedule or FaultSchedule(),
+                   dut=dut or DutSpec("in_process", name="dead_reckoning", config=DR), out=out, seed=seed,
+                   clock=clock or ClockSpec(), duration_ns=None if duration_s is None else round(duration_s * 1e9),
+                   **kw)
+
+
+def _sensor_traffic(path: Path) -> dict[str, object]:
+    """What the bench sent, without BENCH_TIME (whose start-up copies depend on the DUT)."""
+    r = RecordingReader(path)
+    can = r.read_columnar("/wire/can/tx")
+    return {"can": can[can["can_id"] != BENCH_TIME_ID], "imu": r.read_chunks("/wire/imu/tx"),
+            "gnss": r.read_chunks("/wire/gnss/tx")}
+
+
+def _same_traffic(a: dict, b: dict) -> bool:
+    return (np.array_equal(a["can"], b["can"])
+            and all(np.array_equal(x, y) for x, y in zip(a["imu"], b["imu"], strict=True))
+            and all(np.array_equal(x, y) for x, y in zip(a["gnss"], b["gnss"], strict=True)))
+
+
+def _nav(path: Path) -> np.ndarray:
+    sol = RecordingReader(path).read_columnar("/dut/nav_solution")
+    return sol[[n for n in sol.dtype.names if n != "rx_ns"]]
+
+
+def test_in_process_run_records_both_directions(tmp_path):
+    res = run(_spec(tmp_path / "a.mcap"))
+    assert res.ok, res.reason
+    r = RecordingReader(res.path)
+    md = r.metadata()
+    assert md["run_end"]["status"] == "complete" and md["run_start"]["dut"] == "dead_reckoning"
+    assert md["dut_input_tally"] == {}  # the DUT-side decoders rejected nothing
+    can = r.read_columnar("/wire/can/tx")
+    ids, counts = np.unique(can["can_id"], return_counts=True)
+    n = dict(zip(ids.tolist(), counts.tolist(), strict=True))
+    assert n[0x010] == 9001 and n[0x120] == 9000 and n[0x130] == 4500 and n[0x121] == 4500 and n[0x011] == 91
+    t_imu, offsets, _ = r.read_chunks("/wire/imu/tx")
+    assert len(t_imu) == 18000 and set(np.diff(offsets).tolist()) == {42}
+    t_g, _, buf = r.read_chunks("/wire/gnss/tx")
+    # fixes at 1 .. 89 s leave 80 ms later; the one of 90 s would leave after the run ends
+    assert buf.tobytes().count(b"$GBRMC") == 89 and np.all(t_g % 1_000_000_000 == 80_000_000)
+    sol = r.read_columnar("/dut/nav_solution")
+    assert len(sol) == 9001 and np.all(np.diff(sol["t_ns"]) == 10_000_000)
+    assert np.all(sol["rx_ns"] >= sol["t_ns"])
+    assert len(r.read_columnar("/wire/can/rx")) == len(sol) + len(r.read_columnar("/dut/nav_quality"))
+    assert md["dut_output"]["bad_frames"] == "{}"
+
+
+def test_same_seed_same_payloads_other_seed_other_noise(tmp_path):
+    a = _sensor_traffic(run(_spec(tmp_path / "a.mcap", seed=5)).path)
+    b = _sensor_traffic(run(_spec(tmp_path / "b.mcap", seed=5)).path)
+    c = _sensor_traffic(run(_spec(tmp_path / "c.mcap", seed=6)).path)
+    assert _same_traffic(a, b)
+    assert not all(np.array_equal(x, y) for x, y in zip(a["imu"], c["imu"], strict=True))
+
+
+def test_wire_faults_reach_the_dut_and_are_recorded(tmp_path):
+    load_fault_kinds()
+    sched = parse_schedule([
+        {"layer": "wire", "target": "can:ODOMETER", "kind": "corrupt_crc", "start": "20 s", "end": "21 s"},
+        {"layer": "wire", "target": "serial:imu", "kind": "garbage", "start": "30 s", "end": "31 s",
+         "params": {"length": 20}},
+        {"layer": "wire", "target": "can:DOPPLER", "kind": "drop", "start": "40 s", "end": "50 s"},
+    ])
+    res = run(_spec(tmp_path / "f.mcap", schedule=sched))
+    assert res.ok, res.reason
+    r = RecordingReader(res.path)
+    tally = {k: int(v) for k, v in r.metadata()["dut_input_tally"].items()}
+    assert tally["crc"] == 100 and tally["sync"] == 1
+    events = r.read_columnar("/faults/wire")
+    assert sorted(set(events["fault_id"].tolist())) == [0, 1, 2]
+    dop = r.read_columnar("/wire/can/tx")
+    dop = dop[dop["can_id"] == 0x130]
+    assert not np.any((dop["t_ns"] >= 40e9) & (dop["t_ns"] < 50e9))
+
+
+def test_replay_reproduces_the_traffic_frame_for_frame(tmp_path):
+    orig = run(_spec(tmp_path / "o.mcap", seed=2)).path
+    dut = DutSpec("in_process", name="dead_reckoning", config=DR)
+    res = execute(RecordingReplay(orig, lockstep=True), dut, LinkSpec(), ClockSpec(), tmp_path / "r.mcap")
+    assert res.ok, res.reason
+    a, b = RecordingReader(orig), RecordingReader(res.path)
+    assert np.array_equal(a.read_columnar("/wire/can/tx"), b.read_columnar("/wire/can/tx"))
+    for t in ("/wire/imu/tx", "/wire/gnss/tx"):
+        assert all(np.array_equal(x, y) for x, y in zip(a.read_chunks(t), b.read_chunks(t), strict=True))
+    assert np.array_equal(_nav(orig), _nav(res.path))
+    assert np.array_equal(a.read_columnar("/truth"), b.read_columnar("/truth"))
+    # seek: the same frames from 30 s on
+    res = execute(RecordingReplay(orig, lockstep=True, start_ns=30_000_000_000), dut, LinkSpec(), ClockSpec(),
+                  tmp_path / "s.mcap")
+    x, y = RecordingReader(res.path).read_columnar("/wire/can/tx"), a.read_columnar("/wire/can/tx")
+    assert res.ok and np.array_equal(x, y[y["t_ns"] >= 30_000_000_000])
+
+
+def test_replay_with_other_wire_faults_re_encodes_the_samples(tmp_path):
+    load_fault_kinds()
+    orig = run(_spec(tmp_path / "o.mcap", seed=2)).path
+    sched = parse_schedule([{"layer": "wire", "target": "can:ODOMETER", "kind": "drop", "start": "10 s",
+                             "end": "12 s"}])
+    dut = DutSpec("in_process", name="dead_reckoning", config=DR)
+    res = execute(RecordingReplay(orig, lockstep=True, faults=sched), dut, LinkSpec(), ClockSpec(),
+                  tmp_path / "r.mcap")
+    assert res.ok, res.reason
+    a, b = RecordingReader(orig).read_columnar("/wire/can/tx"), RecordingReader(res.path).read_columnar("/wire/can/tx")
+    odo_a, odo_b = a[a["can_id"] == 0x120], b[b["can_id"] == 0x120]
+    assert len(odo_a) - len(odo_b) == 200
+    keep = (odo_a["t_ns"] < 10e9) | (odo_a["t_ns"] >= 12e9)
+    assert np.array_equal(odo_a[keep]["t_ns"], odo_b["t_ns"])
+    assert [d["kind"] for _, d in RecordingReader(res.path).iter_json("/faults")] == ["drop"]
+
+
+def test_real_time_run_measures_lateness_and_enforces_its_budget(tmp_path):
+    from bench.clock.pacing import TimingBudget
+
+    res = run(_spec(tmp_path / "rt.mcap", clock=ClockSpec(mode="realtime", speed=2.0), duration_s=8.0))
+    assert res.ok, res.reason
+    r = RecordingReader(res.path)
+    timing = r.read_columnar("/bench/timing")
+    assert len(timing) == 801 and np.all(timing["lateness_ns"] >= 0)
+    assert np.median(timing["lateness_ns"]) < 1_000_000  # ns: on time, step after step
+    assert res.timing is not None and res.timing.count == 801
+    assert len(r.read_columnar("/dut/nav_solution")) == 801
+    late = run(_spec(tmp_path / "late.mcap", duration_s=2.0,
+                     clock=ClockSpec(mode="realtime", speed=8.0, budget=TimingBudget(p99_ns=1, max_ns=1))))
+    assert late.status == "timing_budget" and "budget missed" in late.reason
+    assert RecordingReader(late.path).metadata()["run_end"]["status"] == "timing_budget"
+
+
+def _external_cmd(ns: str, port: int) -> str:
+    return (f"ip netns exec {ns} {sys.executable} -m bench.dut.harness --estimator dead_reckoning "
+            f"--can-interface {{can_interface}} --can-channel {{can_channel}} --can-port {port} "
+            "--imu {imu_port} --gnss {gnss_port} --config {config}")
+
+
+def _external(tmp_path: Path, name: str, *, group: str, port: int, **kw):
+    reason = netns.unavailable()
+    if reason:
+        pytest.skip(f"udp_multicast between processes needs a network namespace: {reason}")
+    with netns.multicast_netns() as ns:
+        spec = _spec(tmp_path / name, dut=DutSpec("external", command=_external_cmd(ns, port), config=DR),
+                     links=LinkSpec(can={"interface": "udp_multicast", "channel": group, "port": port}), **kw)
+        return netns.call_in(ns, lambda: run(spec))
+
+
+@pytest.mark.slow
+def test_external_process_over_pty_and_can_equals_in_process(tmp_path):
+    inproc = run(_spec(tmp_path / "in.mcap", seed=9, duration_s=30.0))
+    ext = _external(tmp_path, "ext.mcap", group="239.74.163.41", port=43341, seed=9, duration_s=30.0,
+                    clock=ClockSpec(step_ns=100_000_000))
+    assert inproc.ok and ext.ok, ext.reason
+    assert _same_traffic(_sensor_traffic(inproc.path), _sensor_traffic(ext.path))
+    assert np.array_equal(_nav(inproc.path), _nav(ext.path))  # the same estimator, bit for bit
+    r = RecordingReader(ext.path)
+    assert ext.dut_exit["exit_code"] == 0 and ext.dut_exit["terminated_in_time"]
+    assert any("listening" in d["text"] for _, d in r.iter_json("/dut/log"))
+    assert r.metadata()["dut_output"]["bad_frames"] == "{}"
+
+
+@pytest.mark.slow
+def test_external_process_in_real_time(tmp_path):
+    ext = _external(tmp_path, "rt.mcap", group="239.74.163.42", port=43342, seed=9, duration_s=5.0,
+                    clock=ClockSpec(mode="realtime", speed=1.0))
+    assert ext.ok, ext.reason
+    r = RecordingReader(ext.path)
+    sol = r.read_columnar("/dut/nav_solution")
+    assert len(sol) >= 490  # 100 Hz; the last few may still be in flight when the run ends
+    latency = (sol["rx_ns"] - sol["t_ns"]) * 1e-6
+    assert np.median(latency) < 50.0  # ms: the DUT answers as the traffic flows
+    assert ext.timing is not None and ext.timing.count > 1000
