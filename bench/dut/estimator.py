@@ -86,6 +86,9 @@ class CanView(Mapping[str, dict[str, np.ndarray]]):
 class DutInputs:
     """Decoded traffic that arrived in ``(previous step, t_ns]``.
 
+    Every sample's ``rx_ns`` is the step time ``t_ns`` it is handed over at (a DUT knows
+    bench time from BENCH_TIME only), in process and through the harness alike.
+
     Attributes
     ----------
     t_ns:

@@ -88,6 +88,12 @@ class InputDecoder:
     def step_inputs(self, decoded: Decoded, step_times: np.ndarray, start_ns: int) -> Iterator[DutInputs]:
         """The :class:`DutInputs` of each step of a decoded window."""
         ci, cg, cc = decoded.cuts(step_times, start_ns)
+        # what arrived within a step is handed over at the step: rx_ns is the step's time, as
+        # for an external DUT, which learns bench time from BENCH_TIME only
+        _stamp(decoded.imu, ci, step_times)
+        _stamp(decoded.gnss, cg, step_times)
+        for name, cols in decoded.can.items():
+            _stamp(cols, cc[name], step_times)
         ci_l, cg_l = ci.tolist(), cg.tolist()
         cc_l = {k: v.tolist() for k, v in cc.items()}
         names = list(cc_l)
@@ -101,3 +107,9 @@ class InputDecoder:
                 CanView(decoded.can, lo, hi),
                 self.epoch_utc_ns,
             )
+
+
+def _stamp(records, cuts: np.ndarray, step_times: np.ndarray) -> None:
+    """Set ``rx_ns`` of the samples of each step ``[cuts[k], cuts[k+1])`` to its time."""
+    rx = records["rx_ns"]
+    rx[cuts[0] : cuts[-1]] = np.repeat(step_times, np.diff(cuts))

@@ -17,6 +17,13 @@ that fails, is interrupted or is killed between chunks still leaves a readable f
 ``error``           the bench failed (the reason says how).
 
 All but ``complete`` make the verdict ERROR: the bench could not judge the DUT.
+
+Whatever the ending, the DUT is shut down (an external DUT's whole process group: SIGTERM,
+the shutdown timeout, SIGKILL) and its last output lines, ``dut_exit``, the output tally
+and the run summary are recorded before ``run_end``; each of these cleanup steps is
+guarded, so one failing does not lose the others or the file. An interrupt
+(:class:`KeyboardInterrupt`, which ``bench`` also raises on SIGTERM) is raised again once
+the recording is finished, so the caller stops too.
 """
 
 from __future__ import annotations
@@ -95,6 +102,12 @@ def _status_of(exc: BaseException) -> str:
     if isinstance(exc, TimingBudgetError):
         return "timing_budget"
     return "error"
+
+
+def _reason_of(exc: BaseException) -> str:
+    if isinstance(exc, KeyboardInterrupt):
+        return f"interrupted by {exc.args[0]}" if exc.args else "interrupted (KeyboardInterrupt)"
+    return str(exc) if isinstance(exc, BenchError) else f"{type(exc).__name__}: {exc}"
 
 
 class TrafficProvider(ABC):
@@ -180,6 +193,8 @@ def run(spec: RunSpec, progress: Callable[[float, float], None] | None = None) -
     ------
     ConfigError
         Before any recording is written, when the spec cannot be run as written.
+    KeyboardInterrupt
+        Again, after the recording of an interrupted run was finished (status ``interrupted``).
     """
     spec.check()
     provider = SynthProvider(spec)
@@ -211,13 +226,22 @@ def execute(
     """The engine loop: traffic from ``provider`` to the DUT, everything recorded.
 
     The run starts at ``provider.start_ns`` (a whole number of steps; a replay may seek),
-    where the DUT's first step and its start-up handshake are.
+    where the DUT's first step and its start-up handshake are. Never raises for a failed
+    DUT or link (the result and the recording say how the run ended); an interrupt is
+    raised again once the recording is finished.
     """
     started = time.perf_counter()
     dut.check()
     clock_spec.check()
+    start_error: DutError | None = None
     if dut.kind == "in_process":
-        estimator = create_estimator(str(dut.name), dut.config)
+        try:
+            estimator = create_estimator(str(dut.name), dut.config)
+        except BenchError:
+            raise
+        except Exception as exc:  # the estimator under test failed to start: its run records that
+            start_error = DutError(f"the estimator {dut.name!r} failed to start: {type(exc).__name__}: {exc}")
+            start_error.__cause__ = exc
     epoch = provider.epoch_ns
     lockstep = clock_spec.lockstep
     clock = LockstepClock() if lockstep else RealTimeClock(clock_spec.speed)
@@ -229,6 +253,7 @@ def execute(
     out: DutOutputRecorder | None = None
     lateness: list[np.ndarray] = []
     t_done = 0
+    interrupt: KeyboardInterrupt | None = None
     try:
         rec.metadata(
             "run_start",
@@ -265,6 +290,8 @@ def execute(
                 units={"t_ns": "ns", "lateness_ns": "ns"},
             )
         out = DutOutputRecorder(rec)
+        if start_error is not None:
+            raise start_error
         if dut.kind == "in_process":
             dut_in = InProcessDut(estimator, epoch)
         else:
@@ -358,53 +385,91 @@ def execute(
                 )
     except BaseException as exc:  # the recording must say how the run ended, whatever happened
         result.status = _status_of(exc)
-        result.reason = str(exc) if isinstance(exc, BenchError) else f"{type(exc).__name__}: {exc}"
-        if not isinstance(exc, (BenchError, KeyboardInterrupt)):
+        result.reason = _reason_of(exc)
+        if isinstance(exc, KeyboardInterrupt):
+            interrupt = exc
+        elif not isinstance(exc, BenchError):
             rec.metadata("run_traceback", {"traceback": traceback.format_exc()})
+        elif isinstance(exc, DutError) and exc.__cause__ is not None and not isinstance(exc.__cause__, BenchError):
+            tb = "".join(traceback.format_exception(exc.__cause__))
+            rec.metadata("dut_traceback", {"traceback": tb})
     finally:
-        if dut_in is not None:
+        late: list[KeyboardInterrupt] = []
+
+        def guarded(what: str, fn: Callable[[], object]) -> None:
+            """One cleanup step: a failure is noted in the reason, an interrupt (a third
+            signal: the DUT was killed at once) after the file is finished."""
             try:
-                dut_in.close()
-            except Exception as exc:  # the DUT's close must not lose the recording
-                result.reason += f" (estimator close failed: {exc})"
-            rec.metadata("dut_input_tally", dut_in.decoder.tally.as_dict())
+                fn()
+            except KeyboardInterrupt as e:
+                late.append(e)
+            except Exception as e:  # a cleanup step must not lose the recording
+                result.reason += f" ({what} failed: {type(e).__name__}: {e})"
+
+        if dut_in is not None:
+            if dut_in.partial is not None and out is not None:  # its output before it failed
+                guarded("recording the DUT output", lambda: out.feed(dut_in.partial))
+            guarded("closing the estimator", dut_in.close)
+            guarded("dut_input_tally", lambda: rec.metadata("dut_input_tally", dut_in.decoder.tally.as_dict()))
         if dut_ext is not None:
-            result.dut_exit = dut_ext.close()
-            rec.metadata("dut_exit", result.dut_exit)
+
+            def close_external() -> None:
+                result.dut_exit = dut_ext.close()
+                rec.metadata("dut_exit", result.dut_exit)
+
+            guarded("shutting the DUT down", close_external)
         if out is not None:
-            out.deferred = False
-            out.process()  # frames received before a real-time run stopped
-            out.write_bad()
-        t_late, late = timing.take()
-        if len(t_late):
-            block = np.zeros(len(t_late), TIMING_DTYPE)
-            block["t_ns"], block["lateness_ns"] = t_late, late
-            rec.write_block(TIMING_TOPIC, block)
-            lateness.append(late)
+
+            def finish_output() -> None:
+                out.deferred = False
+                out.process()  # frames received before a real-time run stopped
+                out.write_bad()
+                rec.metadata(
+                    "dut_output",
+                    {"solutions": out.solutions, "qualities": out.qualities, "bad_frames": out.tally.as_dict()},
+                )
+
+            guarded("recording the DUT output", finish_output)
+
+        def finish_timing() -> None:
+            t_late, late_ns = timing.take()
+            if len(t_late):
+                block = np.zeros(len(t_late), TIMING_DTYPE)
+                block["t_ns"], block["lateness_ns"] = t_late, late_ns
+                rec.write_block(TIMING_TOPIC, block)
+                lateness.append(late_ns)
+            if lateness:
+                result.timing = TimingLog.summarize(np.concatenate(lateness))
+                rec.metadata(
+                    "timing_summary",
+                    {
+                        "count": result.timing.count,
+                        "p50_ns": result.timing.p50_ns,
+                        "p99_ns": result.timing.p99_ns,
+                        "p999_ns": result.timing.p999_ns,
+                        "max_ns": result.timing.max_ns,
+                    },
+                )
+
+        guarded("recording the timing", finish_timing)
+
+        def finish_summary() -> None:
+            result.counts = provider.counts()
+            result.bench_s = t_done * 1e-9
+            result.elapsed_s = time.perf_counter() - started
             rec.metadata(
-                "dut_output",
-                {"solutions": out.solutions, "qualities": out.qualities, "bad_frames": out.tally.as_dict()},
+                "run_summary",
+                {"bench_s": f"{result.bench_s:.3f}", "elapsed_s": f"{result.elapsed_s:.3f}", "counts": result.counts},
             )
-        if lateness:
-            result.timing = TimingLog.summarize(np.concatenate(lateness))
-            rec.metadata(
-                "timing_summary",
-                {
-                    "count": result.timing.count,
-                    "p50_ns": result.timing.p50_ns,
-                    "p99_ns": result.timing.p99_ns,
-                    "p999_ns": result.timing.p999_ns,
-                    "max_ns": result.timing.max_ns,
-                },
-            )
-        result.counts = provider.counts()
-        result.bench_s = t_done * 1e-9
-        result.elapsed_s = time.perf_counter() - started
-        rec.metadata(
-            "run_summary",
-            {"bench_s": f"{result.bench_s:.3f}", "elapsed_s": f"{result.elapsed_s:.3f}", "counts": result.counts},
-        )
+
+        guarded("run_summary", finish_summary)
+        if late and interrupt is None:
+            interrupt = late[0]
+            if result.status == "complete":
+                result.status, result.reason = "interrupted", _reason_of(interrupt) + " while finishing the run"
         rec.close(result.status, result.reason)
+    if interrupt is not None:
+        raise interrupt
     return result
 
 
