@@ -11,6 +11,10 @@ and fix epochs by their time of validity), calls the estimator once per BENCH_TI
 the same decoded inputs the in-process adapter gives it, sends its epochs as
 NAV_SOLUTION/NAV_QUALITY frames, and in lockstep answers every BENCH_TIME(T) with
 DUT_READY(T). SIGTERM ends it cleanly. It is the bench's reference external DUT.
+
+It also stops by itself when the bench hangs up its serial lines (a pty slave reads EIO
+once the bench's master end is closed): a bench killed with SIGKILL, which cannot stop
+its DUT, does not leave this process behind.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ import numpy as np
 
 from bench.dut.estimator import DutInputs, create_estimator
 from bench.dut.inputs import InputDecoder
+from bench.errors import LinkError
 from bench.frames import CanBatch
 from bench.topics import NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE
 from bench.transport.can_link import CanConfig, open_can_link
@@ -34,9 +39,13 @@ from bench.wire.can import CanEncoder, codec
 from bench.wire.imu import IMU_SAMPLE_DTYPE
 from bench.wire.nmea import GNSS_FIX_DTYPE
 
-__all__ = ["Harness", "main"]
+__all__ = ["Harness", "HungUpError", "main"]
 
 _BENCH_TIME = codec("BENCH_TIME")
+
+
+class HungUpError(Exception):
+    """The bench closed a serial line (the far end of the pty is gone)."""
 
 
 class Harness:
@@ -68,7 +77,10 @@ class Harness:
 
         total = 0
         for link, name in ((self.imu, "imu"), (self.gnss, "gnss")):
-            data = link.read(0.0, 1 << 20)
+            try:
+                data = link.read(0.0, 1 << 20)
+            except (OSError, LinkError) as exc:  # EIO: the bench's end of the pty was closed
+                raise HungUpError(f"the bench hung up the {name} line ({exc})") from exc
             if not data:
                 continue
             total += len(data)
@@ -130,10 +142,14 @@ class Harness:
         if out:
             self.can.send_many(CanBatch.concat(out))
 
-    def serve(self) -> None:
-        """Run until SIGTERM (or SIGINT)."""
+    def serve(self) -> str:
+        """Run until SIGTERM (or SIGINT) or until the bench hangs up; returns why it stopped."""
         while not self.stop:
-            self.poll()
+            try:
+                self.poll()
+            except HungUpError as exc:
+                return str(exc)
+        return "stopped on a signal"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -162,11 +178,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"gnss {args.gnss}",
         flush=True,
     )
+    why = "crashed"
     try:
-        harness.serve()
+        why = harness.serve()
     finally:
         harness.close()
-        print(f"harness: stopped after {harness.steps} steps", flush=True)
+        print(f"harness: {why}; stopped after {harness.steps} steps", flush=True)
     return 0
 
 

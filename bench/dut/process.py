@@ -4,8 +4,14 @@ The bench starts it from the test case's command line with the placeholders
 ``{can_interface}``, ``{can_channel}``, ``{imu_port}``, ``{gnss_port}`` and ``{config}``
 filled in, in a session of its own (so the whole process group can be ended), captures
 its standard output and error line by line with bench timestamps, notices when it dies,
-and on shutdown sends SIGTERM, waits the shutdown timeout, then SIGKILLs the group: no
-orphans are left whatever the DUT does.
+and on shutdown sends SIGTERM to the group, waits the shutdown timeout, then SIGKILLs the
+group: no process of the group is left whatever the DUT does (a DUT that puts children
+in sessions of their own, or a bench killed with SIGKILL, are the limits; see
+``docs/run_engine.md``, "How a run ends").
+
+The leader is not reaped before the group has been killed: while it is a zombie its
+process id, which is the group id, cannot be reused, so the final SIGKILL can never hit
+an unrelated process group.
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ from bench.errors import ConfigError, DutError
 __all__ = ["DutProcess", "LogLine", "fill_placeholders", "PLACEHOLDERS"]
 
 PLACEHOLDERS = ("can_interface", "can_channel", "imu_port", "gnss_port", "config")
+_MAX_LINE = 64 * 1024
 
 
 @dataclass(frozen=True)
@@ -93,6 +100,11 @@ class DutProcess:
         self._on_line = on_line
         self._closed = False
         self.exit_code: int | None = None
+        #: How the process ended: "exited by itself", "exited on SIGTERM", "killed after the
+        #: shutdown timeout" (None while it runs).
+        self.ended: str | None = None
+        #: Output lines lost because nobody took them before ``keep_lines`` more arrived.
+        self.lines_dropped = 0
         full_env = {**os.environ, **(env or {})}
         try:
             self._p = subprocess.Popen(
@@ -119,13 +131,27 @@ class DutProcess:
         return self._p.pid
 
     def _pump(self, stream, name: str) -> None:
-        for raw in iter(stream.readline, b""):
-            line = LogLine(time.monotonic_ns(), name, raw.decode("utf-8", "replace").rstrip("\r\n"))
-            with self._lock:
-                self._lines.append(line)
-            if self._on_line is not None:
-                self._on_line(line)
-        stream.close()
+        try:
+            while True:
+                raw = stream.readline(_MAX_LINE)  # a DUT writing without newlines cannot exhaust memory
+                if not raw:
+                    break
+                line = LogLine(time.monotonic_ns(), name, raw.decode("utf-8", "replace").rstrip("\r\n"))
+                with self._lock:
+                    if len(self._lines) == self._lines.maxlen:
+                        self.lines_dropped += 1
+                    self._lines.append(line)
+                if self._on_line is not None:
+                    self._on_line(line)
+        except (OSError, ValueError):  # the pipe was closed under us
+            pass
+        finally:
+            stream.close()
+
+    @property
+    def has_lines(self) -> bool:
+        """Whether output lines are waiting (cheap: no lock)."""
+        return bool(self._lines)
 
     def take_lines(self) -> list[LogLine]:
         """Output lines read since the last call."""
@@ -134,12 +160,26 @@ class DutProcess:
             self._lines.clear()
         return out
 
+    def wait_output(self, timeout_s: float = 1.0) -> bool:
+        """Wait until both output pipes reached their end (the process and every child
+        holding them exited), at most ``timeout_s``; whether they did."""
+        deadline = time.monotonic() + timeout_s
+        for t in self._threads:
+            t.join(max(0.0, deadline - time.monotonic()))
+        return not any(t.is_alive() for t in self._threads)
+
     def poll(self) -> int | None:
-        """Exit code if the process has ended (negative: killed by that signal), else None."""
-        code = self._p.poll()
-        if code is not None:
-            self.exit_code = code
-        return code
+        """Exit code if the process has ended (negative: killed by that signal), else None.
+
+        The leader is left unreaped (a zombie) until :meth:`close` has killed its group.
+        """
+        if self.exit_code is None:
+            code = _peek_exit(self._p)
+            if code is not None:
+                self.exit_code = code
+                if self.ended is None:
+                    self.ended = "exited by itself"
+        return self.exit_code
 
     def check_alive(self) -> None:
         """Raise :class:`DutError` naming the exit status if the process has ended."""
@@ -148,23 +188,42 @@ class DutProcess:
             raise DutError(f"the DUT process exited {describe_exit(code)}")
 
     def close(self) -> int | None:
-        """SIGTERM, wait, SIGKILL the whole process group; returns the exit code."""
+        """SIGTERM the process group, wait up to the shutdown timeout for the leader, then
+        SIGKILL the whole group (children that outlived the leader too) and reap the leader;
+        returns the exit code. Idempotent; an interrupt while waiting still kills the group."""
         if self._closed:
             return self.exit_code
         self._closed = True
-        if self._p.poll() is None:
-            self._signal_group(signal.SIGTERM)
-            try:
-                self._p.wait(timeout=self.shutdown_timeout_s)
-            except subprocess.TimeoutExpired:
-                self._signal_group(signal.SIGKILL)
+        try:
+            if self.poll() is None:
+                self._signal_group(signal.SIGTERM)
+                if self._wait_exit(self.shutdown_timeout_s):
+                    self.ended = "exited on SIGTERM"
+                else:
+                    self.ended = f"killed: still running {self.shutdown_timeout_s:g} s after SIGTERM"
+        finally:
+            # the leader is at most a zombie here, so its group id is still its own
+            self._signal_group(signal.SIGKILL)
+            with contextlib.suppress(subprocess.TimeoutExpired):  # SIGKILL cannot be refused
                 self._p.wait(timeout=5.0)
-        # the leader may be gone while children of its group live on: end them too
-        self._signal_group(signal.SIGKILL)
-        for t in self._threads:
-            t.join(timeout=2.0)
-        self.exit_code = self._p.returncode
+            self.wait_output(2.0)
+        if self._p.returncode is not None:
+            self.exit_code = self._p.returncode
+        if self.ended is None:
+            self.ended = "exited by itself"
         return self.exit_code
+
+    def _wait_exit(self, timeout_s: float) -> bool:
+        """Wait (without reaping) until the leader exits; whether it did within ``timeout_s``."""
+        deadline = time.monotonic() + timeout_s
+        pause = 0.002
+        while self.poll() is None:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return False
+            time.sleep(min(pause, left))
+            pause = min(pause * 2, 0.05)
+        return True
 
     def _signal_group(self, sig: int) -> None:
         with contextlib.suppress(ProcessLookupError, PermissionError):
@@ -173,13 +232,31 @@ class DutProcess:
     @property
     def terminated_in_time(self) -> bool:
         """False when the process had to be killed after SIGTERM (ICD: exit within 5 s)."""
-        return self.exit_code is not None and self.exit_code != -signal.SIGKILL
+        return self.exit_code is not None and not (self.ended or "").startswith("killed")
 
     def __enter__(self) -> DutProcess:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _peek_exit(p: subprocess.Popen) -> int | None:
+    """Exit code of ``p`` if it has ended, without reaping it (Popen convention: negative
+    for a signal). Falls back to :meth:`Popen.poll` where ``waitid`` is missing."""
+    if p.returncode is not None:
+        return p.returncode
+    if not hasattr(os, "waitid"):
+        return p.poll()
+    try:
+        info = os.waitid(os.P_PID, p.pid, os.WEXITED | os.WNOHANG | os.WNOWAIT)
+    except ChildProcessError:  # reaped elsewhere
+        return p.poll()
+    if info is None:
+        return None
+    if info.si_code == os.CLD_EXITED:
+        return info.si_status
+    return -info.si_status
 
 
 def describe_exit(code: int) -> str:

@@ -11,17 +11,20 @@ a JSON file (``{config}``), starts the command line, and then either
   at the line's baud), measuring the lateness of every emission, and records what
   arrives with the bench time of its arrival.
 
-A DUT that dies, does not answer, never starts, or floods the bus ends the run with a
-:class:`~bench.errors.DutError` naming what happened; shutdown always ends the whole
-process group.
+A DUT that dies, does not answer, never starts, stops reading its serial lines, or
+floods the bus ends the run with a :class:`~bench.errors.DutError` naming what happened
+(with its exit status and last output lines when it died); shutdown always ends the
+whole process group. The DUT's standard output and error are recorded as they come
+(lockstep: after each step; real time: at the end of each window).
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,7 +32,7 @@ import numpy as np
 
 from bench.clock.pacing import Clock, TimingLog
 from bench.dut.process import DutProcess, LogLine, describe_exit, fill_placeholders
-from bench.errors import ConfigError, DutError
+from bench.errors import ConfigError, DutError, LinkError
 from bench.frames import CanBatch, CanFrame
 from bench.run.spec import DutSpec, LinkSpec
 from bench.run.traffic import Traffic
@@ -98,6 +101,7 @@ class ExternalDut:
         self.now_ns = 0  # bench time stamped on received frames
         self.ready_ns = -1  # latest DUT_READY time received
         self.process: DutProcess | None = None
+        self._recent: list[LogLine] = []  # the last output lines, for error messages
         self._tmp = tempfile.TemporaryDirectory(prefix="bench-dut-")
         self.can: CanLink | None = None
         self.serial: dict[str, SerialLink] = {}
@@ -132,22 +136,48 @@ class ExternalDut:
             argv, cwd=self.spec.cwd, env=self.spec.env, shutdown_timeout_s=self.spec.shutdown_timeout_s
         )
 
-    def _check_process(self) -> None:
-        if self.process is not None:
-            code = self.process.poll()
-            if code is not None:
-                self._flush_lines()
-                tail = "; ".join(ln.text for ln in self.process.take_lines()[-5:])
-                raise DutError(
-                    f"the DUT process exited {describe_exit(code)} at bench time {self.now_ns / 1e9:.3f} s"
-                    + (f" (last output: {tail})" if tail else "")
-                )
+    def _check_process(self, when: str = "") -> None:
+        """Raise :class:`DutError` if the DUT process has ended, with its exit status and
+        its last output lines (which are recorded first)."""
+        if self.process is None:
+            return
+        code = self.process.poll()
+        if code is None:
+            return
+        self.process.wait_output(1.0)  # the lines it wrote before it died
+        self._flush_lines()
+        when = when or f"at bench time {self.now_ns / 1e9:.3f} s"
+        raise DutError(f"the DUT process exited {describe_exit(code)} {when}" + self._tail())
+
+    def _tail(self, n: int = 5) -> str:
+        """`` (last output: ...)`` with the DUT's last ``n`` non-empty lines, or nothing."""
+        texts = [t[:200] for t in (ln.text.strip() for ln in self._recent) if t][-n:]
+        return f" (last output: {' | '.join(texts)})" if texts else ""
 
     def _flush_lines(self) -> None:
-        if self.process is not None and self.on_lines is not None:
+        """Record the DUT's output lines read so far (at the current bench time)."""
+        if self.process is not None and self.process.has_lines:
             lines = self.process.take_lines()
-            if lines:
+            self._recent = (self._recent + lines)[-20:]
+            if self.on_lines is not None:
                 self.on_lines(lines, self.now_ns)
+
+    @contextlib.contextmanager
+    def _dut_side(self) -> Iterator[None]:
+        """A link failure caused by the DUT is the DUT's error: it died, or it stopped
+        reading a pty (a real serial line never blocks the bench)."""
+        try:
+            yield
+        except LinkError as exc:
+            self._check_process()
+            for name, link in self.serial.items():
+                if link.dut_port and f"the DUT on {link.dut_port} took no bytes" in str(exc):  # a pty it does not read
+                    self._flush_lines()
+                    raise DutError(
+                        f"the DUT stopped reading its {name} line at bench time {self.now_ns / 1e9:.3f} s "
+                        f"(it hangs?): {exc}" + self._tail()
+                    ) from exc
+            raise
 
     def start(self, first: CanBatch, received: Callable[[CanBatch], None], sent: Callable[[CanBatch], None]) -> None:
         """Wait until the DUT listens.
@@ -161,11 +191,11 @@ class ExternalDut:
         t_first = int(first.t_ns[0]) if len(first) else 0
         if not self.lockstep:
             time.sleep(min(0.5, self.spec.startup_timeout_s))
-            self._check_process()
+            self._check_process("during start-up")
             return
         assert self.can is not None
         while True:
-            self._check_process()
+            self._check_process(f"during start-up, before answering BENCH_TIME({t_first / 1e9:g} s)")
             self.can.send_many(first)
             sent(first)
             got = self.can.drain(timeout=0.1)
@@ -178,7 +208,7 @@ class ExternalDut:
                 self._flush_lines()
                 raise DutError(
                     f"the DUT did not answer BENCH_TIME({t_first / 1e9:g} s) with DUT_READY within "
-                    f"{self.spec.startup_timeout_s:g} s of its start (ICD 5: listening within 5 s)"
+                    f"{self.spec.startup_timeout_s:g} s of its start (ICD 5: listening within 5 s)" + self._tail()
                 )
 
     def _ready_at_least(self, frames: CanBatch, t_ns: int) -> bool:
@@ -206,16 +236,18 @@ class ExternalDut:
             100,
             int(self.spec.flood_frames_per_s * (step_times[1] - step_times[0]) * 1e-9) if len(step_times) > 1 else 100,
         )
-        for k, t in enumerate(step_times.tolist()):
-            self.now_ns = t
-            if i_cut[k] > i0:
-                self.serial["imu"].write(imu.buf[imu.offsets[i0] : imu.offsets[i_cut[k]]].tobytes())
-            if g_cut[k] > g0:
-                self.serial["gnss"].write(gnss.buf[gnss.offsets[g0] : gnss.offsets[g_cut[k]]].tobytes())
-            if c_cut[k] > c0:
-                self.can.send_many(can.take(np.arange(c0, c_cut[k])))
-            c0, i0, g0 = c_cut[k], i_cut[k], g_cut[k]
-            self._await_ready(t, timeout_s, flood, received)
+        with self._dut_side():
+            for k, t in enumerate(step_times.tolist()):
+                self.now_ns = t
+                if i_cut[k] > i0:
+                    self.serial["imu"].write(imu.buf[imu.offsets[i0] : imu.offsets[i_cut[k]]].tobytes())
+                if g_cut[k] > g0:
+                    self.serial["gnss"].write(gnss.buf[gnss.offsets[g0] : gnss.offsets[g_cut[k]]].tobytes())
+                if c_cut[k] > c0:
+                    self.can.send_many(can.take(np.arange(c0, c_cut[k])))
+                c0, i0, g0 = c_cut[k], i_cut[k], g_cut[k]
+                self._await_ready(t, timeout_s, flood, received)
+                self._flush_lines()
 
     def _await_ready(self, t_ns: int, timeout_s: float, flood: int, received: Callable[[CanBatch], None]) -> None:
         assert self.can is not None
@@ -229,6 +261,7 @@ class ExternalDut:
                 n += len(got)
                 received(got)
                 if n > flood:
+                    self._flush_lines()
                     raise DutError(
                         f"the DUT floods the bus: {n} frames within the step ending at "
                         f"{t_ns / 1e9:.3f} s (limit {flood})"
@@ -240,7 +273,7 @@ class ExternalDut:
                 self._flush_lines()
                 raise DutError(
                     f"no DUT_READY for bench time {t_ns / 1e9:.3f} s within {timeout_s:g} s "
-                    "(the DUT hangs or ignores the lockstep protocol)"
+                    "(the DUT hangs or ignores the lockstep protocol)" + self._tail()
                 )
 
     # ------------------------------------------------------------------ real time
@@ -261,11 +294,25 @@ class ExternalDut:
     ) -> None:
         """Emit one window's traffic on the clock, receiving as it goes; ``idle(slack_ns)``
         is called when the next emission is far enough away to do other work."""
+        flood = int(self.spec.flood_frames_per_s * max(1e-9 * (end_ns - self.now_ns), 0.01)) + 100
+        with self._dut_side():
+            self._emit(plan, clock, timing, end_ns, received, idle, flood)
+
+    def _emit(
+        self,
+        plan: RealtimePlan,
+        clock: Clock,
+        timing: TimingLog,
+        end_ns: int,
+        received: Callable[[CanBatch], None],
+        idle: Callable[[int], None] | None,
+        flood: int,
+    ) -> None:
         assert self.can is not None
         send_can, write_imu, write_gnss = self.can.send, self.serial["imu"].write, self.serial["gnss"].write
-        flood = int(self.spec.flood_frames_per_s * max(1e-9 * (end_ns - self.now_ns), 0.01)) + 100
         n_rx = 0
         k = 0
+        next_check = self.now_ns  # the DUT process is checked in slack moments, every 100 ms of bench time
         times, kinds, index = plan.times, plan.kinds, plan.index
         n = len(times)
         while k < n:
@@ -286,11 +333,15 @@ class ExternalDut:
                 n_rx += len(got)
                 received(got)
                 if n_rx > flood:
+                    self._flush_lines()
                     raise DutError(f"the DUT floods the bus: {n_rx} frames in one window (limit {flood})")
             if idle is not None and k < n:
                 slack = times[k] - clock.now_ns()
                 if slack > 5_000_000:
                     idle(slack)
+            if self.now_ns >= next_check and k < n and times[k] - self.now_ns > 1_000_000:
+                next_check = self.now_ns + 100_000_000
+                self._check_process()
         clock.wait_until(end_ns)
         self.now_ns = clock.now_ns()
         got = self.can.drain(timeout=0.0)
@@ -322,21 +373,30 @@ class ExternalDut:
     def close(self) -> dict:
         """Stop the process and close the links (idempotent); returns exit facts."""
         facts: dict = {}
-        if self.process is not None:
-            self._flush_lines()
-            code = self.process.close()
-            facts = {
-                "exit_code": code,
-                "exit": describe_exit(code) if code is not None else "unknown",
-                "terminated_in_time": self.process.terminated_in_time,
-            }
-            self._flush_lines()
-            self.process = None
-        if self.can is not None:
-            self.can.close()
-            self.can = None
-        for link in self.serial.values():
-            link.close()
-        self.serial = {}
-        self._tmp.cleanup()
+        try:
+            if self.process is not None:
+                p = self.process
+                try:
+                    self._flush_lines()
+                finally:
+                    code = p.close()  # kills the group even when interrupted
+                facts = {
+                    "exit_code": code,
+                    "exit": describe_exit(code) if code is not None else "unknown",
+                    "ended": p.ended,
+                    "terminated_in_time": p.terminated_in_time,
+                    "pid": p.pid,
+                }
+                if p.lines_dropped:
+                    facts["lines_dropped"] = p.lines_dropped
+                self._flush_lines()
+                self.process = None
+        finally:
+            if self.can is not None:
+                self.can.close()
+                self.can = None
+            for link in self.serial.values():
+                link.close()
+            self.serial = {}
+            self._tmp.cleanup()
         return facts

@@ -38,6 +38,9 @@ class InProcessDut:
         self.decoder = InputDecoder(epoch_utc_ns)
         self.encoder = CanEncoder()
         self.epochs = 0
+        #: The frames of the steps before the estimator failed in :meth:`exchange` (the
+        #: engine records them before it ends the run).
+        self.partial: CanBatch | None = None
 
     def exchange(self, traffic: Traffic, step_times: np.ndarray, start_ns: int) -> CanBatch:
         """Feed one window's traffic; return the DUT's frames (``t_ns`` = the step they
@@ -52,6 +55,8 @@ class InProcessDut:
             try:
                 out = step(inputs)
             except Exception as exc:  # the estimator under test failed: that ends the run
+                self.partial = self._frames(_stamped(sols, s_rx, NAV_SOLUTION_DTYPE),
+                                            _stamped(quals, q_rx, NAV_QUALITY_DTYPE))
                 raise DutError(
                     f"the estimator {self.estimator.name!r} raised at bench time {inputs.t_ns / 1e9:.3f} "
                     f"s: {type(exc).__name__}: {exc}"
