@@ -4,7 +4,9 @@ The DUT comes from a test case (``--case``: its DUT, links and clock) or from th
 options. Without ``--faults`` the recorded frames go out frame for frame; with a fault
 file the recorded samples are re-encoded with those wire faults instead. ``--start``
 seeks. The new recording carries the original truth, so it is judged like the original
-(``bench score``).
+(``bench score``). Instead of a recording, field logs of a drive (``--can-log`` ASC/BLF,
+``--imu-log``, ``--gnss-log``; ``--truth`` to score it) are re-emitted the same way, with
+``--faults`` adding wire faults (docs/run_engine.md, "Replaying field logs").
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add the ``replay`` subcommand."""
     p = sub.add_parser("replay", help="re-emit a recording's traffic into a DUT (lockstep, 1x or scaled)",
                        description=__doc__.split("\n\n")[1])
-    p.add_argument("recording", help="MCAP recording of an earlier run")
+    p.add_argument("recording", nargs="?", help="MCAP recording of an earlier run (or give field logs)")
     p.add_argument("-o", "--out", required=True, help="recording of the replay")
     p.add_argument("--case", help="test case whose DUT, links and clock to use")
     p.add_argument("--estimator", help="in-process estimator name (instead of --case)")
@@ -32,7 +34,29 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--start", type=float, default=0.0, help="seek: start at this bench time, s")
     p.add_argument("--step", type=float, default=10.0, help="scheduler step, ms (default 10)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    _field_log_options(p)
     p.set_defaults(handler=_run)
+
+
+def _field_log_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("field logs (instead of a recording; times as '80 ms' or seconds)")
+    g.add_argument("--can-log", help="python-can log of the vehicle bus (.asc, .blf)")
+    g.add_argument("--imu-log", help="raw bytes of the imu line (ICD 3 frames)")
+    g.add_argument("--gnss-log", help="raw bytes of the gnss line (NMEA)")
+    g.add_argument("--epoch", help="UTC of bench time zero, ISO 8601 (when the CAN log has no BENCH_EPOCH)")
+    g.add_argument("--can-offset", help="bench time of the CAN log's first frame (logs without BENCH_TIME; default 0)")
+    g.add_argument("--can-ids", choices=("icd", "all"), default="icd",
+                   help="re-emit the ICD's bench-to-DUT messages only (default) or every classic frame")
+    g.add_argument("--can-channel", type=int, help="use this channel of the log only (1, 2, ...)")
+    g.add_argument("--imu-shift", default="0", help="added to the IMU frames' times of validity (re-stamped)")
+    g.add_argument("--gnss-latency", default="0", help="NMEA epoch's UTC time to its sentences on the line")
+    g.add_argument("--truth", help="ground-truth track of the drive, written as /truth so the replay can be scored")
+    g.add_argument("--truth-format", choices=("smartloc", "csv"), default="smartloc", help="truth file format")
+    g.add_argument("--truth-time", choices=("bench", "utc"), default="bench",
+                   help="the truth's time column is bench time (default) or UTC seconds since 1970")
+    g.add_argument("--truth-offset", default="0", help="added to the truth's times")
+    g.add_argument("--truth-smoothing", default="0", help="1-sigma position noise of the truth track, m")
+    g.add_argument("--seed", type=int, default=1, help="seed of the wire faults (field logs)")
 
 
 def _dut_config(path: str | None) -> dict:
@@ -78,8 +102,14 @@ def _run(args: argparse.Namespace) -> int:
     faults: FaultSchedule | None = None
     if args.faults:
         faults = fault_schedule({}, extra=[args.faults])
-    provider = RecordingReplay(args.recording, lockstep=clock.lockstep, faults=faults,
-                               start_ns=round(args.start * 1e9))
+    logs = args.can_log or args.imu_log or args.gnss_log
+    if bool(args.recording) == bool(logs):
+        raise ConfigError("give either a recording or field logs (--can-log, --imu-log, --gnss-log)", key="recording")
+    if logs:
+        provider = _log_replay(args, clock.lockstep, faults)
+    else:
+        provider = RecordingReplay(args.recording, lockstep=clock.lockstep, faults=faults,
+                                   start_ns=round(args.start * 1e9))
     with progress_bar("replay", (provider.duration_ns - provider.start_ns) * 1e-9, enabled=not args.quiet) as bar:
         result = execute(provider, dut, links, clock, Path(args.out), progress=bar)
     print(f"{result.path}: {result.status}" + (f" ({result.reason})" if result.reason else "")
@@ -87,3 +117,31 @@ def _run(args: argparse.Namespace) -> int:
     if result.timing is not None:
         print(f"  timing: {result.timing.text()}", file=sys.stderr)
     return 0 if result.ok else 3
+
+
+def _log_replay(args: argparse.Namespace, lockstep: bool, faults):
+    from bench.run.logreplay import FieldLogs, LogReplay, TruthTrack
+    from bench.runinfo import parse_epoch
+    from bench.units import quantity
+
+    def ns(text: str | None, key: str) -> int | None:
+        return None if text is None else round(quantity(text, "time", "s", key=key) * 1e9)
+
+    logs = FieldLogs(
+        can=Path(args.can_log) if args.can_log else None,
+        imu=Path(args.imu_log) if args.imu_log else None,
+        gnss=Path(args.gnss_log) if args.gnss_log else None,
+        epoch_ns=parse_epoch(args.epoch, key="--epoch") if args.epoch else None,
+        can_offset_ns=ns(args.can_offset, "--can-offset"),
+        can_ids=args.can_ids,
+        can_channel=args.can_channel,
+        imu_shift_ns=ns(args.imu_shift, "--imu-shift") or 0,
+        gnss_latency_ns=ns(args.gnss_latency, "--gnss-latency") or 0,
+    )
+    truth = None
+    if args.truth:
+        truth = TruthTrack(Path(args.truth), format=args.truth_format, time=args.truth_time,
+                           offset_ns=ns(args.truth_offset, "--truth-offset") or 0,
+                           smoothing=quantity(args.truth_smoothing, "length", "m", key="--truth-smoothing"))
+    return LogReplay(logs, lockstep=lockstep, truth=truth, faults=faults, seed=args.seed,
+                     start_ns=round(args.start * 1e9))

@@ -10,6 +10,7 @@ Modules
 :mod:`bench.transport.serial_link`  pty pairs, real ports, ``loop://``
 :mod:`bench.transport.pacing`       real-time byte pacing at baud and framing
 :mod:`bench.transport.export`       ASC and BLF export and read-back
+:mod:`bench.transport.canlog`       field CAN logs (ASC, BLF, ...) read for replay
 
 See docs/wire.md.
 """
