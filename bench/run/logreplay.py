@@ -268,7 +268,8 @@ class LogReplay(TrafficProvider):
         }
         for kind, p in files.items():
             out[f"{kind}_log"] = str(p)
-            out[f"{kind}_log_sha256"] = hashlib.sha256(p.read_bytes()).hexdigest()
+            with p.open("rb") as fh:
+                out[f"{kind}_log_sha256"] = hashlib.file_digest(fh, "sha256").hexdigest()
         out.update(self.placement)
         if self.windows:
             out["seed"] = str(self.seed)
