@@ -426,3 +426,22 @@ def test_sigkill_leaves_a_readable_recording_and_the_harness_exits_on_hang_up(ns
     # nobody stops the DUT: it notices that the bench hung up its pty lines and exits
     wait_for(lambda: not alive(dut), 20, "the orphaned DUT to exit")
     wait_for(lambda: not group_members(dut), 5, "the DUT's group to end")
+
+
+@pytest.mark.slow
+def test_sigterm_finishes_a_bench_synth_recording(tmp_path):
+    out = tmp_path / "s000.mcap"
+    p = subprocess.Popen([*CLI, "synth", "S000", "-o", str(out), "-q"], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    try:
+        wait_for(lambda: _has_truth(out), 120, "the first chunk of the recording")
+        p.send_signal(signal.SIGTERM)
+        _, stderr = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    assert p.returncode == 3 and "bench: interrupted by SIGTERM" in stderr
+    d = describe(str(out))
+    assert d["complete"] is True and d["ended"]["status"] == "interrupted"
+    assert 0 < d["span_s"][1] < 3600.0  # stopped early
