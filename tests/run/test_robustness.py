@@ -391,7 +391,8 @@ def test_sigint_and_sigterm_finish_the_recording_and_stop_the_dut(ns, tmp_path, 
     assert d["ended"] == {"status": "interrupted", "reason": f"interrupted by {sig.name}"}
     assert d["metadata"]["dut_exit"]["ended"] == "exited on SIGTERM"
     sol = RecordingReader(_recording(out)).read_columnar("/dut/nav_solution")
-    assert d["topics"]["/dut/nav_solution"]["samples"] == len(sol) and sol["t_ns"].max() >= 2_000_000_000
+    # the DUT got to step 2.0 s only after the bench had its answers up to 1.99 s
+    assert d["topics"]["/dut/nav_solution"]["samples"] == len(sol) and sol["t_ns"].max() >= 1_990_000_000
     assert any("harness: stopped on a signal" in t for _, t in log_texts(_recording(out)))
     _no_process_left(pid_file)
 
