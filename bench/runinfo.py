@@ -42,7 +42,8 @@ def parse_epoch(text: str | None, *, file: str | None = None, key: str = "scenar
                           key=key) from None
     if when.tzinfo is None:
         when = when.replace(tzinfo=_dt.UTC)
-    return round(when.timestamp()) * 1_000_000_000 + when.microsecond * 1000
+    whole = when.replace(microsecond=0)
+    return int(whole.timestamp()) * 1_000_000_000 + when.microsecond * 1000
 
 
 def host_metadata() -> dict[str, Any]:

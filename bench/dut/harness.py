@@ -23,12 +23,13 @@ import argparse
 import json
 import signal
 import sys
+import time
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from bench.dut.estimator import DutInputs, create_estimator
+from bench.dut.estimator import CanView, DutInputs, create_estimator
 from bench.dut.inputs import InputDecoder
 from bench.errors import LinkError
 from bench.frames import CanBatch
@@ -61,6 +62,7 @@ class Harness:
         self._carry = CanBatch.empty()
         self._imu = np.zeros(0, IMU_SAMPLE_DTYPE)
         self._gnss = np.zeros(0, GNSS_FIX_DTYPE)
+        self._imu_period: int | None = None  # learned from the frames' times
         self.stop = False
         self.steps = 0
 
@@ -71,14 +73,15 @@ class Harness:
         self.imu.close()
         self.gnss.close()
 
-    def _read_serial(self) -> int:
-        """Read and decode what the serial lines hold; returns the bytes read."""
+    def _read_serial(self, wait: float = 0.0) -> int:
+        """Read and decode what the serial lines hold (waiting up to ``wait`` s for the
+        IMU line); returns the bytes read."""
         from bench.frames import SerialBatch
 
         total = 0
         for link, name in ((self.imu, "imu"), (self.gnss, "gnss")):
             try:
-                data = link.read(0.0, 1 << 20)
+                data = link.read(wait if name == "imu" else 0.0, 1 << 20)
             except (OSError, LinkError) as exc:  # EIO: the bench's end of the pty was closed
                 raise HungUpError(f"the bench hung up the {name} line ({exc})") from exc
             if not data:
@@ -86,10 +89,33 @@ class Harness:
             total += len(data)
             batch = SerialBatch(np.array([0]), np.array([0, len(data)]), data)
             if name == "imu":
-                self._imu = np.concatenate([self._imu, self.decoder.feed(imu=batch).imu])
+                new = self.decoder.feed(imu=batch).imu
+                self._imu = np.concatenate([self._imu, new])
+                if self._imu_period is None and len(self._imu) >= 3:
+                    self._imu_period = int(np.median(np.diff(self._imu["t_ns"][-3:])))
             else:
                 self._gnss = np.concatenate([self._gnss, self.decoder.feed(gnss=batch).gnss])
         return total
+
+    def _await_serial(self, t_ns: int, limit_s: float = 0.02) -> None:
+        """Wait (briefly) for IMU frames up to ``t_ns`` still on their way through the pty.
+
+        In lockstep the bench writes every byte due by ``T`` before it sends BENCH_TIME(T),
+        but a pty hands written bytes to its reader a moment later (the kernel pushes them
+        from a work queue), so a BENCH_TIME sent over a socket can overtake them. When the
+        IMU line is active and its newest frame is a whole period or more before ``t_ns``,
+        read on until it arrives, for at most ``limit_s``.
+        """
+        imu = self._imu["t_ns"]
+        if self._imu_period is None or (len(imu) and imu[-1] + self._imu_period > t_ns):
+            return
+        deadline = time.monotonic() + limit_s
+        while time.monotonic() < deadline:
+            self._read_serial(wait=0.0005)
+            imu = self._imu["t_ns"]
+            if len(imu) and imu[-1] + self._imu_period > t_ns:
+                self._read_serial()  # and what the gnss line got meanwhile
+                return
 
     def poll(self, timeout: float = 0.005) -> None:
         """Receive what is pending and handle every BENCH_TIME in it.
@@ -114,21 +140,32 @@ class Harness:
         frames = CanBatch(np.arange(len(frames), dtype=np.int64), frames.can_id, frames.data, frames.length, frames.fd)
         self._read_serial()
         decoded = self.decoder.feed(can=frames)
+        bt_times = decoded.can.get("BENCH_TIME", {}).get("time_ns")
+        if bt_times is not None and len(bt_times):
+            self._await_serial(int(bt_times.max()))
         bt = decoded.can.get("BENCH_TIME")
         if bt is None or len(bt["rx_ns"]) == 0:
             return
         out: list[CanBatch] = []
-        prev = -1
-        for pos, t, lock in zip(bt["rx_ns"].tolist(), bt["time_ns"].tolist(), bt["lockstep"].tolist(), strict=True):
-            can = {
-                k: {c: v[(cols["rx_ns"] > prev) & (cols["rx_ns"] <= pos)] for c, v in cols.items()}
-                for k, cols in decoded.can.items()
-            }
-            prev = pos
-            take_i = self._imu["t_ns"] <= t
-            take_g = self._gnss["t_ns"] <= t
-            inputs = DutInputs(t, self._imu[take_i], self._gnss[take_g], can, self.decoder.epoch_utc_ns)
-            self._imu, self._gnss = self._imu[~take_i], self._gnss[~take_g]
+        pos, times, locks = bt["rx_ns"], bt["time_ns"], bt["lockstep"].tolist()
+        # cut the CAN columns at the BENCH_TIME positions, the serial samples at the times
+        cuts = {k: np.searchsorted(cols["rx_ns"], np.concatenate([[-1], pos]), side="right")
+                for k, cols in decoded.can.items()}
+        ci = np.searchsorted(self._imu["t_ns"], times, side="right")
+        cg = np.searchsorted(self._gnss["t_ns"], times, side="right")
+        for name, cols in decoded.can.items():  # handed over at the step: rx_ns = its time
+            c = cuts[name]
+            cols["rx_ns"][c[0] : c[-1]] = np.repeat(times, np.diff(c))
+        imu_lo = gnss_lo = 0
+        for k, t in enumerate(times.tolist()):
+            lo = {n: int(c[k]) for n, c in cuts.items()}
+            hi = {n: int(c[k + 1]) for n, c in cuts.items()}
+            imu = self._imu[imu_lo : ci[k]]
+            gnss = self._gnss[gnss_lo : cg[k]]
+            imu["rx_ns"] = t
+            gnss["rx_ns"] = t
+            imu_lo, gnss_lo = int(ci[k]), int(cg[k])
+            inputs = DutInputs(t, imu, gnss, CanView(decoded.can, lo, hi), self.decoder.epoch_utc_ns)
             res = self.estimator.step(inputs)
             self.steps += 1
             if len(res.solutions):
@@ -137,8 +174,9 @@ class Harness:
             if len(res.qualities):
                 q = np.asarray(res.qualities, NAV_QUALITY_DTYPE)
                 out.append(self.encoder.encode_records("NAV_QUALITY", q, at_ns=np.full(len(q), t)))
-            if lock:
+            if locks[k]:
                 out.append(self.encoder.encode("DUT_READY", np.array([t]), time_ns=np.array([t])))
+        self._imu, self._gnss = self._imu[imu_lo:], self._gnss[gnss_lo:]
         if out:
             self.can.send_many(CanBatch.concat(out))
 
@@ -183,7 +221,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         why = harness.serve()
     finally:
         harness.close()
-        print(f"harness: {why}; stopped after {harness.steps} steps", flush=True)
+        print(f"harness: {why}; stopped after {harness.steps} steps; input rejected: "
+              f"{json.dumps(harness.decoder.tally.as_dict())}; link {json.dumps(harness.can.stats())}", flush=True)
     return 0
 
 

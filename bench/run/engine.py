@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.clock import realtime_priority
 from bench.clock.pacing import LockstepClock, RealTimeClock, TimingLog, TimingSummary
 from bench.dut.estimator import create_estimator
 from bench.errors import BenchError, ConfigError, DutError, LinkError
@@ -355,6 +356,7 @@ def execute(
                 dut_ext.start(CanBatch.empty(), out.feed, lambda frames: None)
             out.deferred = True
             idle = lambda slack: out.process(4)  # noqa: E731 - a few batches per slack moment
+            rec.metadata("realtime_scheduling", realtime_priority.acquire())
             clock.start(start_ns)
             for t0, t1, plan, step_times in plans:
                 if dut_ext is not None:
@@ -368,6 +370,7 @@ def execute(
                         out.feed(dut_in.exchange(part, step_times[k : k + 1], lo))
                 t_done = t1
                 report(t1)
+            realtime_priority.release()
             out.deferred = False
             out.process()
             t_late, late = timing.take()

@@ -26,9 +26,9 @@ from bench.frames import CanBatch, SerialBatch
 from bench.record.mcap_io import COLUMNAR, RecordingReader, RecordingWriter
 from bench.record.wire_topics import CAN_TX, SERIAL_TX, read_can, read_serial
 from bench.run.engine import COMMANDS_TOPIC, TrafficProvider
+from bench.run.fieldcan import with_lockstep_bit
 from bench.run.source import SEGMENTS_TOPIC
 from bench.run.traffic import BENCH_TIME_ID, Traffic, TrafficEncoder, _ordered
-from bench.wire.can import CanEncoder, codec
 
 __all__ = ["RecordingReplay"]
 
@@ -161,21 +161,9 @@ class RecordingReplay(TrafficProvider):
         return can, read_serial(self.reader, SERIAL_TX["imu"]), read_serial(self.reader, SERIAL_TX["gnss"])
 
     def _rebuild_bench_time(self, can: CanBatch) -> CanBatch:
-        """BENCH_TIME frames with this replay's lockstep bit (when the clock mode changed)."""
-        sel = np.flatnonzero(can.can_id == BENCH_TIME_ID)
-        if sel.size == 0:
-            return can
-        c = codec("BENCH_TIME")
-        values, _ = c.decode(can.take(sel))
-        want = int(self.lockstep)
-        if np.all(values["lockstep"] == want):
-            return can
-        rebuilt = CanEncoder().encode(
-            "BENCH_TIME", can.t_ns[sel], time_ns=values["time_ns"], lockstep=np.full(sel.size, want)
-        )
-        data = can.data.copy()
-        data[sel, :8] = rebuilt.data[:, :8]
-        return CanBatch(can.t_ns, can.can_id, data, can.length, can.fd)
+        """BENCH_TIME frames with this replay's lockstep bit (when the clock mode changed);
+        their time and alive counter are kept."""
+        return with_lockstep_bit(can, self.lockstep)[0]
 
     def metadata(self) -> dict[str, str]:
         keep = ("scenario", "scenario_title", "seed", "imu_rate_hz", "imu_grade", "truth_rate_hz", "case")

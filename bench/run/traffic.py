@@ -48,10 +48,10 @@ class Traffic:
 
 
 def _ordered(batch: CanBatch) -> CanBatch:
-    """Time order, and BENCH_TIME after the other frames of the same time."""
+    """Time order; at equal times by identifier, BENCH_TIME last (ICD 6)."""
     if len(batch) == 0:
         return batch
-    order = np.lexsort(((batch.can_id == BENCH_TIME_ID).astype(np.int8), batch.t_ns))
+    order = np.lexsort((batch.can_id, (batch.can_id == BENCH_TIME_ID).astype(np.int8), batch.t_ns))
     return batch.take(order)
 
 

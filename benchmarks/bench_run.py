@@ -1,0 +1,196 @@
+"""Run-engine speed and timing quality.
+
+1. Lockstep S000 (3600 s, 50.6 km) with the decode-only DUT in process, all links
+   (every frame encoded, decoded on the DUT side, the DUT's output encoded, received and
+   decoded) and the full recording. Target: at least 300x real time (at most 12 s).
+   Beside it, for information, the dead-reckoning DUT, and a shorter run with the DUT as
+   an external process over pty + udp_multicast (in a network namespace, when permitted).
+2. Real time, 60 s, 1 kHz IMU plus all other traffic (odometer, Doppler, driver, BDS,
+   BENCH_*), emitted to an external DUT process over pty + udp_multicast: lateness p50,
+   p99, p99.9, max of every emission. Targets: p99 <= 50 us, max <= 2 ms. Beside it,
+   python-can's own player (``can.MessageSync``) paces the same emissions, and the ratio
+   of our max lateness to its is printed.
+
+    .venv/bin/python benchmarks/bench_run.py [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from bench.clock.pacing import TimingLog  # noqa: E402
+from bench.faults.schedule import FaultSchedule  # noqa: E402
+from bench.run.engine import run  # noqa: E402
+from bench.run.spec import ClockSpec, DutSpec, LinkSpec, RunSpec  # noqa: E402
+from bench.scenario.loader import load_scenario  # noqa: E402
+
+SHORT = ROOT / "tests" / "data" / "short_drive.toml"
+TABLES_1K = {"imu": {"grade": "navigation", "rate": "1000 Hz"}, "doppler": {"model": "seed000"},
+             "odometer": {"model": "typical_wheeled"}, "bds": {"model": "seed001", "latency": "80 ms"},
+             "driver": {"vehicle": "wheeled"}}
+
+
+def lockstep(out: Path) -> None:
+    sc = load_scenario("S000")
+    traj = sc.trajectory()  # built once, outside the timed runs (0.5 s)
+    print("1. Lockstep S000, 3600 s of bench time, in-process DUT, all links, full recording")
+    for name, config in (("decode_only", {}),
+                         ("dead_reckoning", {"initial_position": [34 + 14.763 / 60, 108 + 54.579 / 60, 380.0],
+                                             "alignment": "250 s"})):
+        spec = RunSpec(scenario=sc, tables=sc.doc, schedule=FaultSchedule(), trajectory=traj,
+                       dut=DutSpec("in_process", name=name, config=config), out=out / f"s000_{name}.mcap")
+        t = time.perf_counter()
+        res = run(spec)
+        el = time.perf_counter() - t
+        frames = sum(res.counts.values())
+        size = spec.out.stat().st_size / 1e6
+        verdict = ("MET" if el <= 12.0 else "MISSED") if name == "decode_only" else "(information)"
+        print(f"   {name:<15} {res.status:<8} {el:6.2f} s  {3600 / el:6.0f}x real time  target >= 300x "
+              f"(<= 12 s) {verdict}; {frames} samples, recording {size:.0f} MB")
+
+
+def _netns():
+    from tests.transport import netns
+
+    reason = netns.unavailable()
+    return (None, reason) if reason else (netns, None)
+
+
+def external_lockstep(out: Path) -> None:
+    netns, reason = _netns()
+    if netns is None:
+        print(f"   external DUT: skipped ({reason})")
+        return
+    sc = load_scenario(SHORT)
+    with netns.multicast_netns() as ns:
+        cmd = (f"ip netns exec {ns} {sys.executable} -m bench.dut.harness --estimator decode_only "
+               "--can-interface {can_interface} --can-channel {can_channel} --can-port 43391 "
+               "--imu {imu_port} --gnss {gnss_port}")
+        for step_ms in (10, 100):
+            spec = RunSpec(scenario=sc, tables=sc.doc, schedule=FaultSchedule(), dut=DutSpec("external", command=cmd),
+                           links=LinkSpec(can={"interface": "udp_multicast", "channel": "239.74.163.91",
+                                               "port": 43391}),
+                           clock=ClockSpec(step_ns=step_ms * 1_000_000), out=out / f"ext_{step_ms}.mcap")
+            t = time.perf_counter()
+            res = netns.call_in(ns, lambda spec=spec: run(spec))
+            el = time.perf_counter() - t
+            print(f"   external process (pty + udp_multicast), {step_ms:3d} ms lockstep steps, 90 s drive: "
+                  f"{res.status}, {el:.1f} s, {90 / el:.0f}x real time")
+
+
+def realtime(out: Path, seconds: float) -> None:
+    print(f"\n2. Real time, {seconds:g} s, IMU 1 kHz + odometer 100 Hz + Doppler 50 Hz + driver 50 Hz + BDS 1 Hz + "
+          "BENCH_TIME 100 Hz, external DUT over pty + udp_multicast")
+    netns, reason = _netns()
+    if netns is None:
+        print(f"   skipped ({reason})")
+        return
+    sc = load_scenario(SHORT)
+    with netns.multicast_netns() as ns:
+        cmd = (f"ip netns exec {ns} {sys.executable} -m bench.dut.harness --estimator decode_only "
+               "--can-interface {can_interface} --can-channel {can_channel} --can-port 43392 "
+               "--imu {imu_port} --gnss {gnss_port}")
+        spec = RunSpec(scenario=sc, tables=TABLES_1K, schedule=FaultSchedule(), dut=DutSpec("external", command=cmd),
+                       links=LinkSpec(can={"interface": "udp_multicast", "channel": "239.74.163.92", "port": 43392}),
+                       clock=ClockSpec(mode="realtime"), out=out / "rt.mcap", duration_ns=round(seconds * 1e9))
+        res = netns.call_in(ns, lambda: run(spec))
+        ours = _lateness_of(spec.out)
+        print(f"   bench:           {res.status}; {_fmt(ours)}  targets p99 <= 50 us "
+              f"{'MET' if np.percentile(ours, 99) <= 50e3 else 'MISSED'}, max <= 2 ms "
+              f"{'MET' if ours.max() <= 2e6 else 'MISSED'}")
+        theirs = netns.call_in(ns, lambda: _message_sync(spec.out))
+        print(f"   can.MessageSync: same emissions, same links; {_fmt(theirs)}")
+        print(f"   ratio of max lateness, bench / MessageSync: {ours.max() / max(theirs.max(), 1):.3f}; "
+              f"p99: {np.percentile(ours, 99) / max(np.percentile(theirs, 99), 1):.3f}")
+
+
+def _fmt(late_ns: np.ndarray) -> str:
+    s = TimingLog.summarize(late_ns)
+    return s.text()
+
+
+def _lateness_of(path: Path) -> np.ndarray:
+    from bench.record.mcap_io import RecordingReader
+
+    return RecordingReader(path).read_columnar("/bench/timing")["lateness_ns"]
+
+
+def _message_sync(path: Path) -> np.ndarray:
+    """python-can's player on the emissions the bench made (CAN frames and serial byte
+    groups), sending through the same kinds of links; its lateness per emission."""
+    import can
+
+    from bench.record.mcap_io import RecordingReader
+    from bench.record.wire_topics import CAN_TX, SERIAL_TX, read_can, read_serial
+    from bench.transport.pacing import byte_groups, byte_time_ns
+    from bench.transport.serial_link import PtyLink, SerialConfig
+
+    r = RecordingReader(path)
+    frames = read_can(r, CAN_TX)
+    emissions: list[tuple[int, int, object]] = [(int(t), 0, f) for t, f in zip(frames.t_ns, frames.frames(),
+                                                                                 strict=True)]
+    for kind, name, baud in ((1, "imu", 460800), (2, "gnss", 115200)):
+        batch = read_serial(r, SERIAL_TX[name])
+        times, offsets = byte_groups(batch, byte_time_ns(baud))
+        emissions += [(int(times[g]), kind, batch.buf[offsets[g]:offsets[g + 1]].tobytes()) for g in range(len(times))]
+    emissions.sort(key=lambda e: (e[0], e[1]))
+    t0 = emissions[0][0]
+    msgs = [can.Message(timestamp=(t - t0) * 1e-9, arbitration_id=i, data=b"") for i, (t, _, _) in enumerate(emissions)]
+    bus = can.Bus(interface="udp_multicast", channel="239.74.163.93", port=43393, fd=True)
+    imu, gnss = PtyLink(SerialConfig(baudrate=460800)), PtyLink(SerialConfig(baudrate=115200))
+    drain = [open(imu.dut_port, "rb", buffering=0), open(gnss.dut_port, "rb", buffering=0)]  # noqa: SIM115
+    for fh in drain:
+        import os
+
+        os.set_blocking(fh.fileno(), False)
+    late = np.empty(len(msgs), np.int64)
+    start = time.monotonic_ns()
+    try:
+        for k, m in enumerate(can.MessageSync(msgs, timestamps=True, gap=0.0, skip=1e9)):
+            now = time.monotonic_ns()
+            late[k] = now - (start + round(m.timestamp * 1e9))
+            _, kind, payload = emissions[m.arbitration_id]
+            if kind == 0:
+                f = payload
+                bus.send(can.Message(arbitration_id=f.can_id, data=f.data, is_fd=f.fd, is_extended_id=False))
+            elif kind == 1:
+                imu.write(payload)
+            else:
+                gnss.write(payload)
+            if k % 64 == 0:
+                for fh in drain:
+                    try:
+                        fh.read(1 << 16)
+                    except BlockingIOError:
+                        pass
+    finally:
+        bus.shutdown()
+        for fh in drain:
+            fh.close()
+        imu.close()
+        gnss.close()
+    return late
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--quick", action="store_true", help="real-time part over 10 s instead of 60 s")
+    args = p.parse_args()
+    with tempfile.TemporaryDirectory() as d:
+        out = Path(d)
+        lockstep(out)
+        external_lockstep(out)
+        realtime(out, 10.0 if args.quick else 60.0)
+
+
+if __name__ == "__main__":
+    main()
