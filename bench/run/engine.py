@@ -409,6 +409,8 @@ def execute(
             except Exception as e:  # a cleanup step must not lose the recording
                 result.reason += f" ({what} failed: {type(e).__name__}: {e})"
 
+        if not lockstep:  # a real-time run that failed in its emission loop still holds them
+            guarded("restoring the scheduling policy and the garbage collector", realtime_priority.release)
         if dut_in is not None:
             if dut_in.partial is not None and out is not None:  # its output before it failed
                 guarded("recording the DUT output", lambda: out.feed(dut_in.partial))

@@ -8,6 +8,7 @@ DUT's output on /dut/log, ``dut_exit`` metadata, and no process of the DUT's gro
 
 from __future__ import annotations
 
+import gc
 import json
 import os
 import signal
@@ -260,6 +261,16 @@ def test_an_in_process_estimator_that_raises_ends_as_dut_error(tmp_path):
     assert "raise ZeroDivisionError" in md["dut_traceback"]["traceback"]  # where in the estimator
     assert r.read_columnar("/dut/nav_solution")["t_ns"].max() == 990_000_000
     assert "solutions" in md["dut_output"]
+
+
+def test_a_real_time_run_ending_in_error_gives_back_its_scheduling_and_the_garbage_collector(tmp_path):
+    register_estimator("raises_at_1s", _Raises)
+    policy = os.sched_getscheduler(0)
+    spec = _spec(tmp_path / "rt.mcap", DutSpec("in_process", name="raises_at_1s"))
+    spec.clock = ClockSpec(mode="realtime", speed=4.0)
+    res = run(spec)
+    assert res.status == "dut_error" and "raised at bench time 1.000 s" in res.reason
+    assert gc.isenabled() and os.sched_getscheduler(0) == policy
 
 
 def test_an_in_process_estimator_that_fails_to_configure_ends_as_dut_error(tmp_path):
