@@ -22,7 +22,10 @@ from bench.scoring.data import NAV_SOLUTION, TIMING, TRUTH, RunData
 __all__ = ["Integrity", "check_integrity", "DUT_STATUSES", "OK_STATUSES"]
 
 OK_STATUSES = ("complete",)
-DUT_STATUSES = ("dut_error",)
+#: Run endings that are the DUT's failure to be judged rather than a measured miss. None:
+#: a DUT that crashes, hangs, never starts or floods the bus ends the run as ERROR (ICD 6,
+#: issue 5): the bench could not judge it; the reason says what the DUT did.
+DUT_STATUSES: tuple[str, ...] = ()
 
 
 @dataclass
