@@ -41,6 +41,7 @@ from bench.topics import NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE
 
 __all__ = [
     "CanView",
+    "stack_outputs",
     "DutInputs",
     "EstimatorOutput",
     "Estimator",
@@ -207,3 +208,26 @@ def create_estimator(name: str, config: Mapping[str, Any] | None = None) -> Esti
     est = _FACTORIES[name]()
     est.configure(dict(config or {}))
     return est
+
+
+def stack_outputs(parts: list[np.ndarray], rx: list[tuple[int, int]], dtype: np.dtype) -> np.ndarray | None:
+    """The records of a window's steps in one array, ``rx_ns`` set to their step time."""
+    if not parts:
+        return None
+    out = np.zeros(sum(n for _, n in rx), dtype)
+    a = 0
+    for part in parts:
+        b = a + len(part)
+        if part.dtype == dtype:
+            out[a:b] = part  # same layout: a plain copy, no per-field promotion
+        else:
+            try:
+                for name in dtype.names:
+                    if part.dtype.names and name in part.dtype.names:
+                        out[name][a:b] = part[name]
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"estimator output is not of the NAV record layout: {exc}") from exc
+        a = b
+    times, counts = zip(*rx, strict=True)
+    out["rx_ns"] = np.repeat(np.array(times, np.int64), np.array(counts))
+    return out

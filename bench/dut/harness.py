@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.dut.estimator import CanView, DutInputs, create_estimator
+from bench.dut.estimator import CanView, DutInputs, create_estimator, stack_outputs
 from bench.dut.inputs import InputDecoder
 from bench.errors import LinkError
 from bench.frames import CanBatch
@@ -43,6 +43,7 @@ from bench.wire.nmea import GNSS_FIX_DTYPE
 __all__ = ["Harness", "HungUpError", "main"]
 
 _BENCH_TIME = codec("BENCH_TIME")
+_READY_ID = codec("DUT_READY").frame_id
 
 
 class HungUpError(Exception):
@@ -157,6 +158,10 @@ class Harness:
             c = cuts[name]
             cols["rx_ns"][c[0] : c[-1]] = np.repeat(times, np.diff(c))
         imu_lo = gnss_lo = 0
+        sols: list[np.ndarray] = []
+        quals: list[np.ndarray] = []
+        s_rx: list[tuple[int, int]] = []
+        q_rx: list[tuple[int, int]] = []
         for k, t in enumerate(times.tolist()):
             lo = {n: int(c[k]) for n, c in cuts.items()}
             hi = {n: int(c[k + 1]) for n, c in cuts.items()}
@@ -169,16 +174,26 @@ class Harness:
             res = self.estimator.step(inputs)
             self.steps += 1
             if len(res.solutions):
-                sol = np.asarray(res.solutions, NAV_SOLUTION_DTYPE)
-                out.append(self.encoder.encode_records("NAV_SOLUTION", sol, at_ns=np.full(len(sol), t)))
+                sols.append(res.solutions)
+                s_rx.append((t, len(res.solutions)))
             if len(res.qualities):
-                q = np.asarray(res.qualities, NAV_QUALITY_DTYPE)
-                out.append(self.encoder.encode_records("NAV_QUALITY", q, at_ns=np.full(len(q), t)))
-            if locks[k]:
-                out.append(self.encoder.encode("DUT_READY", np.array([t]), time_ns=np.array([t])))
+                quals.append(res.qualities)
+                q_rx.append((t, len(res.qualities)))
         self._imu, self._gnss = self._imu[imu_lo:], self._gnss[gnss_lo:]
+        # encode the poll's answers at once: each step's NAV frames, then its DUT_READY
+        sol = stack_outputs(sols, s_rx, NAV_SOLUTION_DTYPE)
+        qual = stack_outputs(quals, q_rx, NAV_QUALITY_DTYPE)
+        if sol is not None:
+            out.append(self.encoder.encode_records("NAV_SOLUTION", sol))
+        if qual is not None:
+            out.append(self.encoder.encode_records("NAV_QUALITY", qual))
+        ready = times[np.array(locks, dtype=bool)] if len(locks) else times[:0]
+        if len(ready):
+            out.append(self.encoder.encode("DUT_READY", ready, time_ns=ready))
         if out:
-            self.can.send_many(CanBatch.concat(out))
+            batch = CanBatch.concat(out)
+            kind = (batch.can_id == _READY_ID).astype(np.int8)
+            self.can.send_many(batch.take(np.lexsort((kind, batch.t_ns))))
 
     def serve(self) -> str:
         """Run until SIGTERM (or SIGINT) or until the bench hangs up; returns why it stopped."""

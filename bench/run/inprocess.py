@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bench.dut.estimator import Estimator
+from bench.dut.estimator import Estimator, stack_outputs
 from bench.dut.inputs import InputDecoder
 from bench.errors import CodecError, DutError
 from bench.frames import CanBatch
@@ -55,8 +55,7 @@ class InProcessDut:
             try:
                 out = step(inputs)
             except Exception as exc:  # the estimator under test failed: that ends the run
-                self.partial = self._frames(_stamped(sols, s_rx, NAV_SOLUTION_DTYPE),
-                                            _stamped(quals, q_rx, NAV_QUALITY_DTYPE))
+                self.partial = self._stacked(sols, s_rx, quals, q_rx)
                 raise DutError(
                     f"the estimator {self.estimator.name!r} raised at bench time {inputs.t_ns / 1e9:.3f} "
                     f"s: {type(exc).__name__}: {exc}"
@@ -67,7 +66,17 @@ class InProcessDut:
             if len(out.qualities):
                 quals.append(out.qualities)
                 q_rx.append((inputs.t_ns, len(out.qualities)))
-        return self._frames(_stamped(sols, s_rx, NAV_SOLUTION_DTYPE), _stamped(quals, q_rx, NAV_QUALITY_DTYPE))
+        return self._stacked(sols, s_rx, quals, q_rx)
+
+    def _stacked(
+        self, sols: list[np.ndarray], s_rx: list[tuple[int, int]], quals: list[np.ndarray], q_rx: list[tuple[int, int]]
+    ) -> CanBatch:
+        try:
+            return self._frames(
+                stack_outputs(sols, s_rx, NAV_SOLUTION_DTYPE), stack_outputs(quals, q_rx, NAV_QUALITY_DTYPE)
+            )
+        except ValueError as exc:
+            raise DutError(f"the estimator {self.estimator.name!r}: {exc}") from exc
 
     def _frames(self, sols: np.ndarray | None, quals: np.ndarray | None) -> CanBatch:
         parts = []
@@ -87,26 +96,3 @@ class InProcessDut:
     def close(self) -> None:
         """End of the run."""
         self.estimator.close()
-
-
-def _stamped(parts: list[np.ndarray], rx: list[tuple[int, int]], dtype: np.dtype) -> np.ndarray | None:
-    """The records of a window's steps in one array, ``rx_ns`` set to their step time."""
-    if not parts:
-        return None
-    out = np.zeros(sum(n for _, n in rx), dtype)
-    a = 0
-    for part in parts:
-        b = a + len(part)
-        if part.dtype == dtype:
-            out[a:b] = part  # same layout: a plain copy, no per-field promotion
-        else:
-            try:
-                for name in dtype.names:
-                    if part.dtype.names and name in part.dtype.names:
-                        out[name][a:b] = part[name]
-            except (TypeError, ValueError) as exc:
-                raise DutError(f"estimator output is not of the NAV record layout: {exc}") from exc
-        a = b
-    times, counts = zip(*rx, strict=True)
-    out["rx_ns"] = np.repeat(np.array(times, np.int64), np.array(counts))
-    return out
