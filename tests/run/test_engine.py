@@ -199,3 +199,35 @@ def test_external_process_in_real_time(tmp_path):
     latency = (sol["rx_ns"] - sol["t_ns"]) * 1e-6
     assert np.median(latency) < 50.0  # ms: the DUT answers as the traffic flows
     assert ext.timing is not None and ext.timing.count > 1000
+
+
+@pytest.mark.slow
+def test_s000_end_to_end_in_process_and_as_an_external_process(tmp_path):
+    """The whole S000 drive (3600 s) in lockstep with the dead-reckoning DUT in process and
+    the same DUT as an external process over pty + CAN: identical sensor payloads (the two
+    runs are also two runs of one seed), and the same navigation output bit for bit."""
+    reason = netns.unavailable()
+    if reason:
+        pytest.skip(f"udp_multicast between processes needs a network namespace: {reason}")
+    sc = load_scenario("S000")
+    traj = sc.trajectory()
+    cfg = {"initial_position": [34 + 14.763 / 60, 108 + 54.579 / 60, 380.0], "alignment": "250 s"}
+
+    def spec(out: Path, dut: DutSpec, **kw) -> RunSpec:
+        return RunSpec(scenario=sc, tables=sc.doc, schedule=FaultSchedule(), dut=dut, out=out, seed=4,
+                       trajectory=traj, **kw)
+
+    inproc = run(spec(tmp_path / "in.mcap", DutSpec("in_process", name="dead_reckoning", config=cfg)))
+    with netns.multicast_netns() as ns:
+        cmd = _external_cmd(ns, 43343)
+        ext_spec = spec(tmp_path / "ext.mcap", DutSpec("external", command=cmd, config=cfg),
+                        links=LinkSpec(can={"interface": "udp_multicast", "channel": "239.74.163.43", "port": 43343}),
+                        clock=ClockSpec(step_ns=1_000_000_000))
+        ext = netns.call_in(ns, lambda: run(ext_spec))
+    assert inproc.ok and ext.ok, ext.reason
+    assert inproc.bench_s == ext.bench_s == 3600.0
+    a, b = _sensor_traffic(inproc.path), _sensor_traffic(ext.path)
+    assert len(a["can"]) == 183_601 and len(a["imu"][0]) == 720_000  # Doppler 50 Hz + BENCH_EPOCH; IMU 200 Hz
+    assert _same_traffic(a, b)
+    nav_a, nav_b = _nav(inproc.path), _nav(ext.path)
+    assert len(nav_a) == 360_001 and np.array_equal(nav_a, nav_b)
