@@ -52,6 +52,7 @@ from bench.run.source import RunSource
 from bench.run.spec import ClockSpec, DutSpec, LinkSpec, RunSpec
 from bench.run.traffic import BENCH_TIME_ID, Traffic, TrafficEncoder
 from bench.runinfo import host_metadata, parse_epoch
+from bench.wire.dbc import dbc_path
 
 __all__ = [
     "RunResult",
@@ -274,6 +275,7 @@ def execute(
         for name, data, media in attachments or []:
             rec.attach(name, data, media)
         provider.declare(rec)
+        rec.attach(f"models/can/{dbc_path().name}", dbc_path().read_bytes(), "text/plain")
         declare_wire_topics(rec)
         rec.columnar_topic(
             WIRE_EVENTS_TOPIC.topic,

@@ -143,7 +143,8 @@ class RunSource:
         self.truth_rate_hz = truth_rate_hz
         self.display_rate_hz = display_rate_hz
         self.grade, self.imu_rate_hz = imu_settings(tables.get("imu"), file=file, grade=imu_grade, rate_hz=imu_rate_hz)
-        self.trajectory = with_motion_faults(trajectory or scenario.trajectory(), schedule)
+        self.base_trajectory = trajectory or scenario.trajectory()
+        self.trajectory = with_motion_faults(self.base_trajectory, schedule)
         self.imu = LaserImu(self.grade, seed, self.imu_rate_hz, write_ideal=write_ideal)
         if sensors is None:
             self.suite = build_suite(tables, seed=seed, file=file, schedule=schedule, imu_name=self.imu.name)
@@ -193,6 +194,17 @@ class RunSource:
         )
         if self.suite.params:
             rec.metadata("sensors", self.suite.record())
+        plant = getattr(self.base_trajectory, "run", None)  # an FMU-driven trajectory (bench.plant)
+        if plant is not None and hasattr(plant, "sha256"):
+            desc = getattr(plant, "description", None)
+            rec.metadata("plant", {
+                "fmu_sha256": plant.sha256,
+                "model": str(getattr(desc, "model_name", "")),
+                "fmi_version": str(getattr(desc, "fmi_version", "")),
+                "steps": str(plant.steps),
+                "step_s": f"{plant.step_s:g}",
+                "log_tail": list(plant.log[-20:]),
+            })
         for src in self.suite.sources():
             rec.attach(f"models/sensors/{src.parent.name}/{src.name}", src.read_bytes(), "application/toml")
         rec.json_topic(FAULT_TOPIC, "bench.FaultWindow", FAULT_JSON_SCHEMA)

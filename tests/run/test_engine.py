@@ -231,3 +231,17 @@ def test_s000_end_to_end_in_process_and_as_an_external_process(tmp_path):
     assert _same_traffic(a, b)
     nav_a, nav_b = _nav(inproc.path), _nav(ext.path)
     assert len(nav_a) == 360_001 and np.array_equal(nav_a, nav_b)
+
+
+@pytest.mark.slow
+def test_an_fmu_driven_run_records_the_plant_and_the_icd(tmp_path):
+    sc = load_scenario("S002")
+    res = run(RunSpec(scenario=sc, tables=sc.doc, schedule=FaultSchedule(), out=tmp_path / "s002.mcap",
+                      dut=DutSpec("in_process", name="decode_only"), duration_ns=30_000_000_000))
+    assert res.ok, res.reason
+    r = RecordingReader(res.path)
+    plant = r.metadata()["plant"]
+    assert len(plant["fmu_sha256"]) == 64 and plant["model"] == "TrackedVehicle"
+    assert "models/can/icd_1_0.dbc" in r.attachments()
+    can = r.read_columnar("/wire/can/tx")
+    assert np.count_nonzero(can["can_id"] == 0x120) == 3000 and np.count_nonzero(can["can_id"] == 0x121) > 0
