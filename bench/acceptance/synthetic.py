@@ -159,12 +159,4 @@ class SyntheticRunner:
 
 
 def _segment(s) -> dict:
-    return {
-        "index": s.index,
-        "kind": s.kind,
-        "start_s": s.start_s,
-        "end_s": s.end_s,
-        "gnss": s.gnss,
-        "surface": s.surface,
-        "label": s.label,
-    }
+    return s.to_json()

@@ -8,29 +8,9 @@ import numpy as np
 from numba import njit
 
 from bench.nav.earth import E2, OMEGA_IE, A
+from bench.nav.strapdown import _qmul, _rv2q
 
 __all__ = ["propagate"]
-
-
-@njit(cache=True)
-def _qmul(a0, a1, a2, a3, b0, b1, b2, b3):
-    return (
-        a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
-        a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
-        a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1,
-        a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0,
-    )
-
-
-@njit(cache=True)
-def _rv2q(x, y, z):
-    a2 = x * x + y * y + z * z
-    if a2 < 1e-8:
-        s, c = 0.5 - a2 / 48.0, 1.0 - a2 / 8.0 + a2 * a2 / 384.0
-    else:
-        a = math.sqrt(a2)
-        s, c = math.sin(a / 2.0) / a, math.cos(a / 2.0)
-    return c, x * s, y * s, z * s
 
 
 @njit(cache=True)

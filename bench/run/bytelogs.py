@@ -39,7 +39,8 @@ import numpy as np
 
 from bench.errors import CodecError, ConfigError
 from bench.frames import SerialBatch
-from bench.wire.imu import FRAME_DTYPE, FRAME_SIZE, check_frames, refresh_crc
+from bench.wire.imu import FRAME_DTYPE, FRAME_SIZE, refresh_crc
+from bench.wire.imu_stream import accept_frames
 from bench.wire.nmea import decode_fields, parse_sentence
 
 __all__ = ["imu_log_chunks", "NmeaLog", "read_nmea_log", "DAY_NS"]
@@ -53,20 +54,7 @@ _TIMED = ("RMC", "GGA", "GST", "ZDA")
 def _frame_starts(buf: np.ndarray) -> tuple[np.ndarray, int]:
     """Start offsets of the frames of ``buf`` (greedy from the front) and the number of
     ``AA 55`` candidates that were no frame."""
-    syncs = np.flatnonzero((buf[:-1] == 0xAA) & (buf[1:] == 0x55)) if buf.size > 1 else np.zeros(0, np.int64)
-    complete = syncs[syncs + FRAME_SIZE <= buf.size]
-    if complete.size == 0:
-        return complete, int(syncs.size)
-    valid = complete[check_frames(buf[complete[:, None] + _OFFS]) == 0]
-    accepted = []
-    if valid.size:
-        ends = np.append(np.flatnonzero(np.diff(valid) != FRAME_SIZE), valid.size - 1)
-        i = 0
-        while i < valid.size:
-            j = int(ends[np.searchsorted(ends, i)])
-            accepted.append(valid[i : j + 1])
-            i = int(np.searchsorted(valid, valid[j] + FRAME_SIZE))
-    starts = np.concatenate(accepted) if accepted else np.zeros(0, np.int64)
+    starts, syncs = accept_frames(buf)
     return starts, int(syncs.size - starts.size)
 
 

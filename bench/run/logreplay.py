@@ -35,7 +35,7 @@ from bench.run.engine import COMMANDS_TOPIC, TrafficProvider
 from bench.run.fieldcan import BENCH_TO_DUT, DUT_TO_BENCH, place_can_log, with_lockstep_bit
 from bench.run.fieldtruth import TruthTrack, TruthWriter
 from bench.run.spec import BENCH_TIME_PERIOD_NS
-from bench.run.traffic import BENCH_TIME_ID, COMMAND_CODES, Traffic, _ordered
+from bench.run.traffic import BENCH_TIME_ID, COMMAND_CODES, Traffic, _ordered, faulted, slice_window
 from bench.runinfo import DEFAULT_EPOCH, parse_epoch
 from bench.wire.can import CanEncoder, codec
 
@@ -95,13 +95,6 @@ def _read_bytes(path: Path, what: str) -> bytes:
         raise ConfigError(f"{what} not found", file=str(path)) from None
     except OSError as exc:
         raise ConfigError(f"cannot read {what}: {exc}", file=str(path)) from None
-
-
-def _slice(batch, t0: int, t1: int, first: bool):
-    """The frames or chunks of ``batch`` in ``(t0, t1]`` (``[t0, t1]`` when ``first``)."""
-    lo = np.searchsorted(batch.t_ns, t0, side="left" if first else "right")
-    hi = np.searchsorted(batch.t_ns, t1, side="right")
-    return batch.take(np.arange(lo, hi))
 
 
 class LogReplay(TrafficProvider):
@@ -294,17 +287,12 @@ class LogReplay(TrafficProvider):
         first = t0_ns == self.start_ns
         if self.truth is not None:
             self.truth.write(rec, t0_ns, t1_ns, first)
-        can = _slice(self._can_traffic, t0_ns, t1_ns, first)
-        imu = _slice(self._imu_traffic, t0_ns, t1_ns, first)
-        gnss = _slice(self._gnss_traffic, t0_ns, t1_ns, first)
-        events = np.zeros(0, WIRE_EVENT_DTYPE)
+        can = slice_window(self._can_traffic, t0_ns, t1_ns, first)
+        imu = slice_window(self._imu_traffic, t0_ns, t1_ns, first)
+        gnss = slice_window(self._gnss_traffic, t0_ns, t1_ns, first)
         if self.injector is not None:
-            can, ev_can = self.injector.can(can, until_ns=t1_ns)
-            imu, ev_imu = self.injector.serial("imu", imu, until_ns=t1_ns)
-            gnss, ev_gnss = self.injector.serial("gnss", gnss, until_ns=t1_ns)
-            can = _ordered(can)
-            events = np.concatenate([ev_can, ev_imu, ev_gnss])
-        return Traffic(can, imu, gnss, events)
+            return faulted(self.injector, can, imu, gnss, t1_ns)
+        return Traffic(can, imu, gnss, np.zeros(0, WIRE_EVENT_DTYPE))
 
     def counts(self) -> dict[str, int]:
         return self.truth.counts() if self.truth is not None else {}

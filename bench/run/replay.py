@@ -28,24 +28,12 @@ from bench.record.wire_topics import CAN_TX, SERIAL_TX, read_can, read_serial
 from bench.run.engine import COMMANDS_TOPIC, TrafficProvider
 from bench.run.fieldcan import with_lockstep_bit
 from bench.run.source import SEGMENTS_TOPIC
-from bench.run.traffic import BENCH_TIME_ID, Traffic, TrafficEncoder, _ordered
+from bench.run.traffic import BENCH_TIME_ID, Traffic, TrafficEncoder, _ordered, slice_window
 
 __all__ = ["RecordingReplay"]
 
 _SAMPLE_KINDS = ("imu", "doppler", "odometer", "bds", "driver")
 _COPIED_JSON = (SEGMENTS_TOPIC, COMMANDS_TOPIC)
-
-
-def _slice_can(batch: CanBatch, t0: int, t1: int, first: bool) -> CanBatch:
-    lo = np.searchsorted(batch.t_ns, t0, side="left" if first else "right")
-    hi = np.searchsorted(batch.t_ns, t1, side="right")
-    return batch.take(np.arange(lo, hi))
-
-
-def _slice_serial(batch: SerialBatch, t0: int, t1: int, first: bool) -> SerialBatch:
-    lo = np.searchsorted(batch.t_ns, t0, side="left" if first else "right")
-    hi = np.searchsorted(batch.t_ns, t1, side="right")
-    return batch.take(np.arange(lo, hi))
 
 
 class RecordingReplay(TrafficProvider):
@@ -199,9 +187,9 @@ class RecordingReplay(TrafficProvider):
         if self._traffic is not None:
             can, imu, gnss = self._traffic
             return Traffic(
-                _slice_can(can, t0_ns, t1_ns, first),
-                _slice_serial(imu, t0_ns, t1_ns, first),
-                _slice_serial(gnss, t0_ns, t1_ns, first),
+                slice_window(can, t0_ns, t1_ns, first),
+                slice_window(imu, t0_ns, t1_ns, first),
+                slice_window(gnss, t0_ns, t1_ns, first),
                 np.zeros(0, WIRE_EVENT_DTYPE),
             )
         assert self.encoder is not None

@@ -197,14 +197,17 @@ class RunSource:
         plant = getattr(self.base_trajectory, "run", None)  # an FMU-driven trajectory (bench.plant)
         if plant is not None and hasattr(plant, "sha256"):
             desc = getattr(plant, "description", None)
-            rec.metadata("plant", {
-                "fmu_sha256": plant.sha256,
-                "model": str(getattr(desc, "model_name", "")),
-                "fmi_version": str(getattr(desc, "fmi_version", "")),
-                "steps": str(plant.steps),
-                "step_s": f"{plant.step_s:g}",
-                "log_tail": list(plant.log[-20:]),
-            })
+            rec.metadata(
+                "plant",
+                {
+                    "fmu_sha256": plant.sha256,
+                    "model": str(getattr(desc, "model_name", "")),
+                    "fmi_version": str(getattr(desc, "fmi_version", "")),
+                    "steps": str(plant.steps),
+                    "step_s": f"{plant.step_s:g}",
+                    "log_tail": list(plant.log[-20:]),
+                },
+            )
         for src in self.suite.sources():
             rec.attach(f"models/sensors/{src.parent.name}/{src.name}", src.read_bytes(), "application/toml")
         rec.json_topic(FAULT_TOPIC, "bench.FaultWindow", FAULT_JSON_SCHEMA)
@@ -212,24 +215,7 @@ class RunSource:
             rec.write_json(FAULT_TOPIC, w.start_ns, w.to_json())
         self.stats.counts[FAULT_TOPIC] = len(self.schedule)
         rec.json_topic(SEGMENTS_TOPIC, "bench.Segments", {"type": "object"})
-        rec.write_json(
-            SEGMENTS_TOPIC,
-            0,
-            {
-                "segments": [
-                    {
-                        "index": s.index,
-                        "kind": s.kind,
-                        "start_s": s.start_s,
-                        "end_s": s.end_s,
-                        "gnss": s.gnss,
-                        "surface": s.surface,
-                        "label": s.label,
-                    }
-                    for s in self.trajectory.segments()
-                ]
-            },
-        )
+        rec.write_json(SEGMENTS_TOPIC, 0, {"segments": [seg.to_json() for seg in self.trajectory.segments()]})
         for spec in [TRUTH_TOPIC, *self.sensor_topics]:
             rec.columnar_topic(spec.topic, spec.schema, spec.dtype, description=spec.description, units=spec.units)
             self.stats.counts.setdefault(spec.topic, 0)

@@ -30,7 +30,7 @@ from bench.wire import imu as imu_codec
 from bench.wire import nmea
 from bench.wire.can import CanEncoder, codec
 
-__all__ = ["Traffic", "TrafficEncoder", "BENCH_TIME_ID", "COMMAND_CODES"]
+__all__ = ["Traffic", "TrafficEncoder", "slice_window", "faulted", "BENCH_TIME_ID", "COMMAND_CODES"]
 
 BENCH_TIME_ID = codec("BENCH_TIME").frame_id
 #: BENCH_CMD codes by name (ICD 2.1).
@@ -45,6 +45,21 @@ class Traffic:
     imu: SerialBatch
     gnss: SerialBatch
     events: np.ndarray  # wire fault events (WIRE_EVENT_DTYPE)
+
+
+def slice_window(batch, t0: int, t1: int, first: bool):
+    """The frames or chunks of ``batch`` (time-ordered) in ``(t0, t1]`` (``[t0, t1]`` when ``first``)."""
+    lo = np.searchsorted(batch.t_ns, t0, side="left" if first else "right")
+    hi = np.searchsorted(batch.t_ns, t1, side="right")
+    return batch.take(np.arange(lo, hi))
+
+
+def faulted(injector: WireFaultInjector, can: CanBatch, imu: SerialBatch, gnss: SerialBatch, t1_ns: int) -> Traffic:
+    """One window's traffic through the wire faults (frames a delay holds wait for later)."""
+    can, ev_can = injector.can(can, until_ns=t1_ns)
+    imu, ev_imu = injector.serial("imu", imu, until_ns=t1_ns)
+    gnss, ev_gnss = injector.serial("gnss", gnss, until_ns=t1_ns)
+    return Traffic(_ordered(can), imu, gnss, np.concatenate([ev_can, ev_imu, ev_gnss]))
 
 
 def _ordered(batch: CanBatch) -> CanBatch:
@@ -184,14 +199,9 @@ class TrafficEncoder:
                 rec["t_ns"], rec["dtheta"], rec["dvel"], rec["status"], rec["temperature"], counter
             )
         gnss = self._gnss(records.get(self._topic.get("bds", "")), t1_ns)
-        events = np.zeros(0, WIRE_EVENT_DTYPE)
         if self._faulty:
-            can, ev_can = self.injector.can(can, until_ns=t1_ns)
-            imu, ev_imu = self.injector.serial("imu", imu, until_ns=t1_ns)
-            gnss, ev_gnss = self.injector.serial("gnss", gnss, until_ns=t1_ns)
-            can = _ordered(can)
-            events = np.concatenate([ev_can, ev_imu, ev_gnss])
-        return Traffic(can, imu, gnss, events)
+            return faulted(self.injector, can, imu, gnss, t1_ns)
+        return Traffic(can, imu, gnss, np.zeros(0, WIRE_EVENT_DTYPE))
 
     def _gnss(self, rec: np.ndarray | None, t1_ns: int) -> SerialBatch:
         """NMEA chunks due by ``t1`` (later ones are held for the next window)."""

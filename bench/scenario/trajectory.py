@@ -99,6 +99,18 @@ class SegmentInfo:
     label: str = ""
     params: dict = field(default_factory=dict, compare=False)
 
+    def to_json(self) -> dict:
+        """The record of ``/scenario/segments``."""
+        return {
+            "index": self.index,
+            "kind": self.kind,
+            "start_s": self.start_s,
+            "end_s": self.end_s,
+            "gnss": self.gnss,
+            "surface": self.surface,
+            "label": self.label,
+        }
+
 
 class Trajectory(ABC):
     """A smooth WGS-84 motion over ``[0, duration_s]``."""

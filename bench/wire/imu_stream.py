@@ -44,10 +44,28 @@ from bench.wire.imu import (
 from bench.wire.sequence import SEQ_DUPLICATE, SEQ_KINDS, SequenceChecker
 from bench.wire.tally import Tally
 
-__all__ = ["ImuStreamDecoder"]
+__all__ = ["ImuStreamDecoder", "accept_frames"]
 
 _OFFS = np.arange(FRAME_SIZE)
 _KEEP_BYTES = 256  # bytes of a bad run kept for the recording
+
+
+def accept_frames(buf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start offsets of the frames the resynchronisation rule accepts in ``buf`` (greedy,
+    one step per run of back-to-back good frames), and every ``AA 55`` position."""
+    n = buf.size
+    syncs = np.flatnonzero((buf[:-1] == 0xAA) & (buf[1:] == 0x55)) if n > 1 else np.zeros(0, np.int64)
+    complete = syncs[syncs + FRAME_SIZE <= n]
+    valid = complete[check_frames(buf[complete[:, None] + _OFFS]) == 0] if complete.size else complete
+    accepted = []
+    if valid.size:
+        ends = np.append(np.flatnonzero(np.diff(valid) != FRAME_SIZE), valid.size - 1)
+        i = 0
+        while i < valid.size:
+            j = int(ends[np.searchsorted(ends, i)])
+            accepted.append(valid[i : j + 1])
+            i = int(np.searchsorted(valid, valid[j] + FRAME_SIZE))
+    return (np.concatenate(accepted) if accepted else np.zeros(0, np.int64)), syncs
 
 
 class ImuStreamDecoder:
@@ -152,19 +170,7 @@ class ImuStreamDecoder:
             return np.zeros(0, IMU_SAMPLE_DTYPE)
         if self._pending is not None and self._starts_with_sync(buf):
             self._end_pending(buf[:0], rx_ns)
-        syncs = np.flatnonzero((buf[:-1] == 0xAA) & (buf[1:] == 0x55))
-        complete = syncs[syncs + FRAME_SIZE <= n]
-        valid = complete[check_frames(buf[complete[:, None] + _OFFS]) == 0] if complete.size else complete
-        # greedy acceptance, one step per run of back-to-back frames
-        accepted = []
-        if valid.size:
-            ends = np.append(np.flatnonzero(np.diff(valid) != FRAME_SIZE), valid.size - 1)
-            i = 0
-            while i < valid.size:
-                j = int(ends[np.searchsorted(ends, i)])
-                accepted.append(valid[i : j + 1])
-                i = int(np.searchsorted(valid, valid[j] + FRAME_SIZE))
-        starts = np.concatenate(accepted) if accepted else np.zeros(0, np.int64)
+        starts, syncs = accept_frames(buf)
         prev_end = np.concatenate([[0], starts[:-1] + FRAME_SIZE])
         for i in np.flatnonzero(starts > prev_end).tolist():  # only where bad bytes lie between frames
             for r0, r1 in self._split_runs(int(prev_end[i]), int(starts[i]), syncs):
