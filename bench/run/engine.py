@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import time
 import traceback
-from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,10 +47,10 @@ from bench.record.wire_topics import CAN_TX, SERIAL_TX, declare_wire_topics, wri
 from bench.run.external import ExternalDut
 from bench.run.inprocess import InProcessDut
 from bench.run.output import DutOutputRecorder
-from bench.run.source import RunSource
+from bench.run.provider import COMMANDS_TOPIC, SynthProvider, TrafficProvider
 from bench.run.spec import ClockSpec, DutSpec, LinkSpec, RunSpec
-from bench.run.traffic import BENCH_TIME_ID, Traffic, TrafficEncoder
-from bench.runinfo import host_metadata, parse_epoch
+from bench.run.traffic import BENCH_TIME_ID, Traffic
+from bench.runinfo import host_metadata
 from bench.wire.dbc import dbc_path
 
 __all__ = [
@@ -66,9 +65,7 @@ __all__ = [
 ]
 
 TIMING_TOPIC = "/bench/timing"
-COMMANDS_TOPIC = "/bench/commands"
 TIMING_DTYPE = np.dtype([("t_ns", "<i8"), ("lateness_ns", "<i8")])
-_COMMAND_NAMES = {1: "grid", 2: "geographic", 3: "reset"}
 
 
 class TimingBudgetError(BenchError):
@@ -110,81 +107,6 @@ def _reason_of(exc: BaseException) -> str:
     if isinstance(exc, KeyboardInterrupt):
         return f"interrupted by {exc.args[0]}" if exc.args else "interrupted (KeyboardInterrupt)"
     return str(exc) if isinstance(exc, BenchError) else f"{type(exc).__name__}: {exc}"
-
-
-class TrafficProvider(ABC):
-    """Where a run's outgoing traffic comes from, window by window.
-
-    :class:`SynthProvider` synthesizes it from a scenario (truth, sensors, ICD encoding,
-    wire faults); the replay providers of :mod:`bench.run.replay` read it from a recording
-    or from field logs. A provider declares and writes its own topics (truth, samples,
-    faults) and returns the traffic due in each window.
-    """
-
-    duration_ns: int
-    epoch_ns: int
-    #: Bench time the run starts at (a replay may seek); traffic at exactly this time is due.
-    start_ns: int = 0
-
-    @abstractmethod
-    def metadata(self) -> dict[str, str]:
-        """Facts of the source for ``run_start``."""
-
-    @abstractmethod
-    def declare(self, rec: RecordingWriter) -> None:
-        """Declare topics and write the once-per-run records."""
-
-    @abstractmethod
-    def window(self, rec: RecordingWriter, t0_ns: int, t1_ns: int) -> Traffic:
-        """Record what the source records for ``(t0, t1]`` and return the traffic due then."""
-
-    def counts(self) -> dict[str, int]:
-        """Samples written per topic."""
-        return {}
-
-
-class SynthProvider(TrafficProvider):
-    """Traffic synthesized from a :class:`RunSpec`'s scenario, sensors and faults."""
-
-    def __init__(self, spec: RunSpec):
-        self.spec = spec
-        self.source = RunSource(
-            spec.scenario,
-            spec.tables,
-            spec.seed,
-            spec.schedule,
-            trajectory=spec.trajectory,
-            truth_rate_hz=spec.truth_rate_hz,
-            duration_ns=spec.duration_ns,
-            write_ideal=spec.write_ideal,
-        )
-        self.epoch_ns = parse_epoch(spec.scenario.meta.get("start_utc"), file=str(spec.scenario.path))
-        self.encoder = TrafficEncoder(
-            self.source.models,
-            epoch_ns=self.epoch_ns,
-            lockstep=spec.clock.lockstep,
-            schedule=spec.schedule,
-            seed=spec.seed,
-            commands=spec.commands,
-            talker=spec.links.talker,
-        )
-        self.duration_ns = self.source.duration_ns
-
-    def metadata(self) -> dict[str, str]:
-        return self.source.metadata()
-
-    def declare(self, rec: RecordingWriter) -> None:
-        attach = not any(a[0].startswith("scenario/") for a in self.spec.attachments)
-        self.source.declare(rec, attach_scenario=attach)
-        rec.json_topic(COMMANDS_TOPIC, "bench.Command", {"type": "object"})
-        for t, c in self.spec.commands:
-            rec.write_json(COMMANDS_TOPIC, t, {"t_ns": t, "command": _COMMAND_NAMES.get(c, str(c)), "code": c})
-
-    def window(self, rec: RecordingWriter, t0_ns: int, t1_ns: int) -> Traffic:
-        return self.encoder.window(self.source.produce(rec, t0_ns, t1_ns), t0_ns, t1_ns)
-
-    def counts(self) -> dict[str, int]:
-        return dict(self.source.stats.counts)
 
 
 def run(spec: RunSpec, progress: Callable[[float, float], None] | None = None) -> RunResult:

@@ -31,9 +31,9 @@ from bench.faults.wire import WIRE_EVENT_DTYPE, WireFaultInjector
 from bench.frames import CanBatch, SerialBatch
 from bench.record.mcap_io import RecordingWriter
 from bench.run.bytelogs import NmeaLog, imu_log_chunks, read_nmea_log
-from bench.run.engine import COMMANDS_TOPIC, TrafficProvider
 from bench.run.fieldcan import BENCH_TO_DUT, DUT_TO_BENCH, place_can_log, with_lockstep_bit
 from bench.run.fieldtruth import TruthTrack, TruthWriter
+from bench.run.provider import COMMANDS_TOPIC, TrafficProvider
 from bench.run.spec import BENCH_TIME_PERIOD_NS
 from bench.run.traffic import BENCH_TIME_ID, COMMAND_CODES, Traffic, _ordered, faulted, slice_window
 from bench.runinfo import DEFAULT_EPOCH, parse_epoch

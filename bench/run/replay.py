@@ -25,8 +25,8 @@ from bench.faults.wire import WIRE_EVENT_DTYPE
 from bench.frames import CanBatch, SerialBatch
 from bench.record.mcap_io import COLUMNAR, RecordingReader, RecordingWriter
 from bench.record.wire_topics import CAN_TX, SERIAL_TX, read_can, read_serial
-from bench.run.engine import COMMANDS_TOPIC, TrafficProvider
 from bench.run.fieldcan import with_lockstep_bit
+from bench.run.provider import COMMANDS_TOPIC, TrafficProvider
 from bench.run.source import SEGMENTS_TOPIC
 from bench.run.traffic import BENCH_TIME_ID, Traffic, TrafficEncoder, _ordered, slice_window
 
