@@ -18,8 +18,8 @@ drop            can:*, serial:*         probability (1, default 1)
 delay           can:*, serial:*         delay (s, 0), jitter (s, 0: uniform 0..jitter)
 duplicate       can:*, serial:*         copies (integer, 1), gap (s, 0)
 freeze          can:*, serial:imu       -
-offset          can:*, serial:imu       signal (text), value (SI unit of the signal)
-scale           can:*, serial:imu       signal (text), factor (1)
+offset          can:*, serial:imu/gnss  signal (text), value (SI unit of the signal)
+scale           can:*, serial:imu/gnss  signal (text), factor (1)
 corrupt_crc     can:*, serial:imu       -
 counter_stale   can:*, serial:imu       -
 counter_skip    can:*, serial:imu       skip (integer, 1)

@@ -100,20 +100,20 @@ def register_wire_kinds() -> None:
     reg("wire", msg + imu_t, "freeze", {}, "values frozen at the last frame before the window; counter runs")
     reg(
         "wire",
-        msg + imu_t,
+        msg + imu_t + gnss_t,
         "offset",
         {
-            "signal": _P("text", "", None, "quantity, e.g. speed or dtheta[2]"),
+            "signal": _P("text", "", None, "quantity, e.g. speed, dtheta[2], or on serial:gnss h, lat, speed"),
             "value": _P("dimensionless", "1", None, "added, in the signal's SI unit"),
         },
         "a signal is offset (the frame stays valid)",
     )
     reg(
         "wire",
-        msg + imu_t,
+        msg + imu_t + gnss_t,
         "scale",
         {
-            "signal": _P("text", "", None, "quantity, e.g. speed or dvel[1]"),
+            "signal": _P("text", "", None, "quantity, e.g. speed, dvel[1], or on serial:gnss h, lat, speed"),
             "factor": _P("dimensionless", "1", None, "multiplies the signal"),
         },
         "a signal is scaled (the frame stays valid)",
@@ -175,7 +175,13 @@ def wire_windows(schedule: FaultSchedule | Iterable[FaultWindow] | None) -> list
         where = f"fault {w.id} ({w.target} {w.kind})"
         if w.target.startswith("can:") and w.target != "can:*" and w.target[4:] not in names:
             raise ConfigError(f"{where}: no message {w.target[4:]!r} in the ICD; known: {', '.join(sorted(names))}")
-        if w.kind in ("offset", "scale"):  # on can:* the messages that carry the signal
+        if w.kind in ("offset", "scale") and w.target == "serial:gnss":
+            from bench.faults.wire_nmea import NMEA_SIGNALS
+
+            if w.params["signal"] not in NMEA_SIGNALS:
+                raise ConfigError(f"{where}: signal must be one of {', '.join(NMEA_SIGNALS)}, "
+                                  f"found {w.params['signal']!r}")
+        elif w.kind in ("offset", "scale"):  # on can:* the messages that carry the signal
             name, index = parse_signal(w.params["signal"])
             if w.target == "serial:imu":
                 carriers = [ImuAdapter().signals()]

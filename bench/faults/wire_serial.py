@@ -24,6 +24,7 @@ import numpy as np
 
 from bench.faults.wire_kinds import concat_events
 from bench.faults.wire_kinds import events as _events
+from bench.faults.wire_nmea import edit_sentence
 from bench.faults.wire_ops import ImuAdapter
 from bench.frames import SerialBatch
 from bench.wire import imu
@@ -108,6 +109,20 @@ def apply_serial(
             rows = inj._content(ImuAdapter(), target, t, batch.buf.reshape(-1, imu.FRAME_SIZE), wins, 0, evs)
             batch = SerialBatch.from_fixed(t, rows)
         chunks: list[bytes] | None = None
+        if stream == "gnss":
+            for w in wins:
+                if w.kind not in ("offset", "scale"):
+                    continue
+                m = np.flatnonzero((t >= w.start_ns) & (t < w.end_ns))
+                if m.size == 0:
+                    continue
+                if chunks is None:
+                    chunks = [c.data for c in batch.chunks()]
+                p = w.params
+                fn = (lambda v, d=p["value"]: v + d) if w.kind == "offset" else (lambda v, f=p["factor"]: v * f)
+                for i in m.tolist():
+                    chunks[i] = edit_sentence(chunks[i], p["signal"], fn)
+                evs.append(_events(t[m], t[m], w, 0, p["value"] if w.kind == "offset" else p["factor"]))
         for w in wins:
             if w.kind not in _BYTES:
                 continue
