@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from bench.errors import CodecError
@@ -136,7 +136,12 @@ def test_resynchronises_without_losing_any_intact_frame(junk, cuts):
     for i in range(40):
         j = junk[i]
         if isinstance(j, tuple):
-            j = frames[j[1]].tobytes()[: j[2]]
+            whole = frames[j[1]].tobytes()
+            j = whole[: j[2]]
+            # a cut frame whose missing tail equals the head of the frame after it (its CRC's
+            # last byte is 0xAA, the next sync byte) is byte for byte an intact frame: any
+            # receiver takes it, and the frame after it is then lost; not a resync failure
+            assume(j + frames[i].tobytes()[: len(whole) - len(j)] != whole)
         parts += [j, frames[i].tobytes()]
     data = b"".join(parts)
     dec = ImuStreamDecoder()
