@@ -31,15 +31,14 @@ from __future__ import annotations
 import time
 import traceback
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from bench.clock import realtime_priority
-from bench.clock.pacing import LockstepClock, RealTimeClock, TimingLog, TimingSummary
+from bench.clock.pacing import LockstepClock, RealTimeClock, TimingLog
 from bench.dut.estimator import create_estimator
-from bench.errors import BenchError, ConfigError, DutError, LinkError
+from bench.errors import BenchError, ConfigError, DutError
 from bench.faults.wire import WIRE_EVENTS_TOPIC
 from bench.frames import CanBatch
 from bench.record.mcap_io import RecordingWriter
@@ -48,6 +47,7 @@ from bench.run.external import ExternalDut
 from bench.run.inprocess import InProcessDut
 from bench.run.output import DutOutputRecorder
 from bench.run.provider import COMMANDS_TOPIC, SynthProvider, TrafficProvider
+from bench.run.result import RunResult, TimingBudgetError, reason_of, status_of
 from bench.run.spec import ClockSpec, DutSpec, LinkSpec, RunSpec
 from bench.run.traffic import BENCH_TIME_ID, Traffic
 from bench.runinfo import host_metadata
@@ -66,47 +66,6 @@ __all__ = [
 
 TIMING_TOPIC = "/bench/timing"
 TIMING_DTYPE = np.dtype([("t_ns", "<i8"), ("lateness_ns", "<i8")])
-
-
-class TimingBudgetError(BenchError):
-    """A real-time run was later than its budget allows."""
-
-
-@dataclass
-class RunResult:
-    """How a run ended and what it produced."""
-
-    path: Path
-    status: str
-    reason: str = ""
-    elapsed_s: float = 0.0
-    bench_s: float = 0.0
-    counts: dict[str, int] = field(default_factory=dict)
-    timing: TimingSummary | None = None
-    dut_exit: dict = field(default_factory=dict)
-
-    @property
-    def ok(self) -> bool:
-        """True when the run went to its end."""
-        return self.status == "complete"
-
-
-def _status_of(exc: BaseException) -> str:
-    if isinstance(exc, KeyboardInterrupt):
-        return "interrupted"
-    if isinstance(exc, DutError):
-        return "dut_error"
-    if isinstance(exc, LinkError):
-        return "link_lost"
-    if isinstance(exc, TimingBudgetError):
-        return "timing_budget"
-    return "error"
-
-
-def _reason_of(exc: BaseException) -> str:
-    if isinstance(exc, KeyboardInterrupt):
-        return f"interrupted by {exc.args[0]}" if exc.args else "interrupted (KeyboardInterrupt)"
-    return str(exc) if isinstance(exc, BenchError) else f"{type(exc).__name__}: {exc}"
 
 
 def run(spec: RunSpec, progress: Callable[[float, float], None] | None = None) -> RunResult:
@@ -311,8 +270,8 @@ def execute(
                     f"max {clock_spec.budget.max_ns / 1e3:g} us)"
                 )
     except BaseException as exc:  # the recording must say how the run ended, whatever happened
-        result.status = _status_of(exc)
-        result.reason = _reason_of(exc)
+        result.status = status_of(exc)
+        result.reason = reason_of(exc)
         if isinstance(exc, KeyboardInterrupt):
             interrupt = exc
         elif not isinstance(exc, BenchError):
@@ -395,7 +354,7 @@ def execute(
         if late and interrupt is None:
             interrupt = late[0]
             if result.status == "complete":
-                result.status, result.reason = "interrupted", _reason_of(interrupt) + " while finishing the run"
+                result.status, result.reason = "interrupted", reason_of(interrupt) + " while finishing the run"
         rec.close(result.status, result.reason)
     if interrupt is not None:
         raise interrupt
