@@ -156,18 +156,17 @@ def _message_sync(path: Path) -> np.ndarray:
 
     from bench.record.mcap_io import RecordingReader
     from bench.record.wire_topics import CAN_TX, SERIAL_TX, read_can, read_serial
-    from bench.transport.pacing import byte_groups, byte_time_ns
+    from bench.run.realtime_plan import EMIT_CAN, EMIT_IMU, plan_emissions
+    from bench.run.traffic import Traffic
     from bench.transport.serial_link import PtyLink, SerialConfig
 
     r = RecordingReader(path)
-    frames = read_can(r, CAN_TX)
-    emissions: list[tuple[int, int, object]] = [(int(t), 0, f) for t, f in zip(frames.t_ns, frames.frames(),
-                                                                                 strict=True)]
-    for kind, name, baud in ((1, "imu", 460800), (2, "gnss", 115200)):
-        batch = read_serial(r, SERIAL_TX[name])
-        times, offsets = byte_groups(batch, byte_time_ns(baud))
-        emissions += [(int(times[g]), kind, batch.buf[offsets[g]:offsets[g + 1]].tobytes()) for g in range(len(times))]
-    emissions.sort(key=lambda e: (e[0], e[1]))
+    traffic = Traffic(read_can(r, CAN_TX), read_serial(r, SERIAL_TX["imu"]), read_serial(r, SERIAL_TX["gnss"]),
+                      np.zeros(0))
+    plan = plan_emissions(traffic, 460800, 115200)
+    payloads = {EMIT_CAN: plan.can, EMIT_IMU: plan.imu}
+    emissions = [(t, kind, payloads.get(kind, plan.gnss)[i]) for t, kind, i in zip(plan.times, plan.kinds, plan.index,
+                                                                                   strict=True)]
     t0 = emissions[0][0]
     msgs = [can.Message(timestamp=(t - t0) * 1e-9, arbitration_id=i, data=b"") for i, (t, _, _) in enumerate(emissions)]
     bus = can.Bus(interface="udp_multicast", channel="239.74.163.93", port=43393, fd=True)
@@ -184,10 +183,10 @@ def _message_sync(path: Path) -> np.ndarray:
             now = time.monotonic_ns()
             late[k] = now - (start + round(m.timestamp * 1e9))
             _, kind, payload = emissions[m.arbitration_id]
-            if kind == 0:
+            if kind == EMIT_CAN:
                 f = payload
                 bus.send(can.Message(arbitration_id=f.can_id, data=f.data, is_fd=f.fd, is_extended_id=False))
-            elif kind == 1:
+            elif kind == EMIT_IMU:
                 imu.write(payload)
             else:
                 gnss.write(payload)

@@ -25,7 +25,6 @@ import json
 import tempfile
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -33,31 +32,17 @@ import numpy as np
 from bench.clock.pacing import Clock, TimingLog
 from bench.dut.process import DutProcess, LogLine, describe_exit, fill_placeholders
 from bench.errors import ConfigError, DutError, LinkError
-from bench.frames import CanBatch, CanFrame
+from bench.frames import CanBatch
+from bench.run.realtime_plan import EMIT_CAN, EMIT_IMU, RealtimePlan, plan_emissions
 from bench.run.spec import DutSpec, LinkSpec
 from bench.run.traffic import Traffic
 from bench.transport.can_link import CanConfig, CanLink, open_can_link
-from bench.transport.pacing import byte_groups, byte_time_ns
 from bench.transport.serial_link import SerialConfig, SerialLink, open_serial_link
 from bench.wire.can import codec
 
 __all__ = ["ExternalDut", "RealtimePlan", "serial_config", "can_config"]
 
 _READY = codec("DUT_READY")
-
-
-@dataclass
-class RealtimePlan:
-    """One window's emissions in time order (prepared before the clock starts): the link
-    of each (0 CAN, 1 imu, 2 gnss), its due time and its index into ``can`` (frames) or
-    ``imu``/``gnss`` (byte groups paced at the line's baud)."""
-
-    kinds: list[int]
-    times: list[int]
-    index: list[int]
-    can: list[CanFrame]
-    imu: list[bytes]
-    gnss: list[bytes]
 
 
 def serial_config(table: dict, key: str, default_baud: int) -> SerialConfig:
@@ -279,9 +264,7 @@ class ExternalDut:
     # ------------------------------------------------------------------ real time
     def plan_realtime(self, traffic: Traffic) -> RealtimePlan:
         """Prepare one window's emissions before the clock starts (real time)."""
-        kinds, times, index = self._schedule(traffic)
-        i_buf, g_buf = self._groups
-        return RealtimePlan(kinds.tolist(), times.tolist(), index.tolist(), traffic.can.frames(), i_buf, g_buf)
+        return plan_emissions(traffic, self.imu_baud, self.gnss_baud)
 
     def exchange_realtime(
         self,
@@ -320,9 +303,9 @@ class ExternalDut:
             timing.add(t, clock.wait_until(t))
             while k < n and times[k] == t:
                 kind, i = kinds[k], index[k]
-                if kind == 0:
+                if kind == EMIT_CAN:
                     send_can(plan.can[i])
-                elif kind == 1:
+                elif kind == EMIT_IMU:
                     write_imu(plan.imu[i])
                 else:
                     write_gnss(plan.gnss[i])
@@ -349,25 +332,6 @@ class ExternalDut:
             received(got)
         self._check_process()
         self._flush_lines()
-
-    def _schedule(self, traffic: Traffic) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Emissions of a window in time order: (link kind 0 CAN / 1 imu / 2 gnss, time, index)."""
-        groups: list[list[bytes]] = []
-        parts_k = [np.zeros(len(traffic.can), np.int8)]
-        parts_t = [traffic.can.t_ns]
-        parts_i = [np.arange(len(traffic.can))]
-        for kind, batch, baud in ((1, traffic.imu, self.imu_baud), (2, traffic.gnss, self.gnss_baud)):
-            times, offsets = (
-                byte_groups(batch, byte_time_ns(baud)) if len(batch) else (np.zeros(0, np.int64), np.zeros(1, np.int64))
-            )
-            groups.append([batch.buf[offsets[g] : offsets[g + 1]].tobytes() for g in range(len(times))])
-            parts_k.append(np.full(len(times), kind, np.int8))
-            parts_t.append(times)
-            parts_i.append(np.arange(len(times)))
-        self._groups = groups
-        k, t, i = np.concatenate(parts_k), np.concatenate(parts_t), np.concatenate(parts_i)
-        order = np.lexsort((k, t))
-        return k[order], t[order], i[order]
 
     # ------------------------------------------------------------------ end
     def close(self) -> dict:
