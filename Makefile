@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml
 
 # the vehicle FMUs, built from source with cmake and the C compiler (fmu/build.py)
 FMU_MANIFEST := fmu/build/SHA256SUMS
-$(FMU_MANIFEST): $(STAMP) fmu/build.py fmu/CMakeLists.txt $(wildcard fmu/src/*) $(wildcard fmu/models/*/*)
+$(FMU_MANIFEST): $(STAMP) fmu/build.py fmu/fmu_xml.py fmu/CMakeLists.txt $(wildcard fmu/src/*) $(wildcard fmu/models/*/*)
 	$(BIN)/python fmu/build.py
 
 fmus: $(FMU_MANIFEST)

@@ -3,7 +3,8 @@
 For each model folder under ``fmu/models/`` (``model.toml`` + C source):
 
 1. generate ``vars.h`` (value references, state indices, start values, the variable
-   table) and ``modelDescription.xml`` for FMI 3.0 and for FMI 2.0 from ``model.toml``;
+   table) and, with ``fmu_xml.py``, ``modelDescription.xml`` for FMI 3.0 and for FMI 2.0
+   from ``model.toml``;
 2. compile the model with ``fmu/src`` (solver and FMI glue) through CMake and the C
    compiler into a shared library;
 3. package ``<Identifier>.fmu`` (FMI 3.0) and ``<Identifier>_fmi2.fmu`` (FMI 2.0) with the
@@ -27,34 +28,11 @@ import tomllib
 import uuid
 import zipfile
 from pathlib import Path
-from xml.sax.saxutils import escape
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))  # the model-description writer beside this script
 
-#: Units the model files may use: base-unit exponents (FMI BaseUnit attributes) and factor.
-UNITS: dict[str, dict[str, float]] = {
-    "kg": {"kg": 1},
-    "m": {"m": 1},
-    "s": {"s": 1},
-    "m/s": {"m": 1, "s": -1},
-    "m/s2": {"m": 1, "s": -2},
-    "km/h": {"m": 1, "s": -1, "factor": 1 / 3.6},
-    "rad": {"rad": 1},
-    "deg": {"rad": 1, "factor": 0.017453292519943295},
-    "rad/s": {"rad": 1, "s": -1},
-    "deg/s": {"rad": 1, "s": -1, "factor": 0.017453292519943295},
-    "N": {"kg": 1, "m": 1, "s": -2},
-    "W": {"kg": 1, "m": 2, "s": -3},
-    "N.s/m": {"kg": 1, "s": -1},
-    "N/m": {"kg": 1, "s": -2},
-    "N/rad": {"kg": 1, "m": 1, "s": -2, "rad": -1},
-    "Hz": {"s": -1},
-    "m2": {"m": 2},
-    "kg/m3": {"kg": 1, "m": -3},
-    "kg.m2": {"kg": 1, "m": 2},
-    "rad.s2/m": {"rad": 1, "s": 2, "m": -1},
-    "%": {"factor": 0.01},
-}
+from fmu_xml import UNITS, gen_build_description, gen_md2, gen_md3  # noqa: E402
 
 _CAUS = {("parameter", "fixed"): 0, ("parameter", "tunable"): 1, ("input", None): 2, ("output", None): 3}
 
@@ -87,7 +65,7 @@ def load_spec(folder: Path) -> dict:
         else:
             raise SystemExit(f"{folder}: variable {v['name']}: unknown causality {caus!r}")
         if v.get("unit", "1") not in UNITS and v.get("unit", "1") != "1":
-            raise SystemExit(f"{folder}: variable {v['name']}: unit {v['unit']!r} is not in fmu/build.py UNITS")
+            raise SystemExit(f"{folder}: variable {v['name']}: unit {v['unit']!r} is not in fmu/fmu_xml.py UNITS")
         variables.append(v)
     names = [v["name"] for v in variables]
     if len(set(names)) != len(names):
@@ -141,182 +119,6 @@ def gen_header(spec: dict) -> str:
     lines.insert(-2, "static inline void bench_vars_used(void) { (void)VAR_START; (void)VAR_MIN; (void)VAR_MAX; "
                  "(void)VAR_TYPE; (void)VAR_CAUSALITY; (void)VAR_NAMES; (void)STATE_NAMES; }")
     return "\n".join(lines)
-
-
-def _attr(**kw: object) -> str:
-    return "".join(f' {k}="{escape(str(v), {chr(34): "&quot;"})}"' for k, v in kw.items() if v is not None)
-
-
-def _num(x: float | int, type_: str) -> str:
-    return str(int(x)) if type_ == "Int32" else repr(float(x))
-
-
-def _units_xml(vs: list[dict], indent: str) -> list[str]:
-    used = sorted({v["unit"] for v in vs if v.get("unit", "1") != "1"})
-    out = [f"{indent}<UnitDefinitions>"]
-    for u in used:
-        base = {k: (repr(float(e)) if k == "factor" else int(e)) for k, e in UNITS[u].items()}
-        out.append(f'{indent}  <Unit name="{escape(u)}"><BaseUnit{_attr(**base)}/></Unit>')
-    out.append(f"{indent}</UnitDefinitions>")
-    return out
-
-
-def gen_md3(spec: dict, stamp: str) -> str:
-    """FMI 3.0 modelDescription.xml."""
-    m, vs = spec["model"], spec["variables"]
-    out = [
-        '<?xml version="1.0" encoding="UTF-8"?>',
-        "<fmiModelDescription"
-        + _attr(
-            fmiVersion="3.0",
-            modelName=m["name"],
-            description=m["description"],
-            version=m.get("version"),
-            instantiationToken=spec["token"],
-            generationTool="nav-hil-bench fmu/build.py",
-            generationDateAndTime=stamp,
-            variableNamingConvention="flat",
-            license="BSD-3-Clause",
-        )
-        + ">",
-        "  <CoSimulation"
-        + _attr(
-            modelIdentifier=m["identifier"],
-            canHandleVariableCommunicationStepSize="true",
-            canGetAndSetFMUState="true",
-            canSerializeFMUState="true",
-            hasEventMode="false",
-            providesIntermediateUpdate="false",
-        )
-        + "/>",
-        *_units_xml(vs, "  "),
-        "  <LogCategories>",
-        '    <Category name="logStatusError" description="errors: failed steps, refused calls"/>',
-        "  </LogCategories>",
-        "  <DefaultExperiment"
-        + _attr(startTime=m["start_time"], stopTime=m["stop_time"], stepSize=m["step_size"])
-        + "/>",
-        "  <ModelVariables>",
-    ]
-    for i, v in enumerate(vs):
-        kw: dict[str, object] = {
-            "name": v["name"],
-            "valueReference": i,
-            "description": v.get("description"),
-            "causality": v["causality"],
-            "variability": v["variability"],
-        }
-        if v["type"] == "Float64" and v.get("unit", "1") != "1":
-            kw["unit"] = v["unit"]
-        if v["causality"] in ("parameter", "input"):
-            if "min" in v:
-                kw["min"] = _num(v["min"], v["type"])
-            if "max" in v:
-                kw["max"] = _num(v["max"], v["type"])
-            kw["start"] = _num(v["start"], v["type"])
-        out.append(f"    <{v['type']}{_attr(**kw)}/>")
-    out.append("  </ModelVariables>")
-    out.append("  <ModelStructure>")
-    outputs = [i for i, v in enumerate(vs) if v["causality"] == "output"]
-    out += [f'    <Output valueReference="{i}"/>' for i in outputs]
-    out += [f'    <InitialUnknown valueReference="{i}"/>' for i in outputs]
-    out += ["  </ModelStructure>", "</fmiModelDescription>", ""]
-    return "\n".join(out)
-
-
-def gen_md2(spec: dict, stamp: str) -> str:
-    """FMI 2.0 modelDescription.xml."""
-    m, vs = spec["model"], spec["variables"]
-    sources = [*m["sources"], "solver.c", "fmi2_glue.c"]
-    out = [
-        '<?xml version="1.0" encoding="UTF-8"?>',
-        "<fmiModelDescription"
-        + _attr(
-            fmiVersion="2.0",
-            modelName=m["name"],
-            guid=spec["token"],
-            description=m["description"],
-            version=m.get("version"),
-            generationTool="nav-hil-bench fmu/build.py",
-            generationDateAndTime=stamp,
-            variableNamingConvention="flat",
-            numberOfEventIndicators=0,
-            license="BSD-3-Clause",
-        )
-        + ">",
-        "  <CoSimulation"
-        + _attr(
-            modelIdentifier=m["identifier"],
-            canHandleVariableCommunicationStepSize="true",
-            canGetAndSetFMUstate="true",
-            canSerializeFMUstate="true",
-            canNotUseMemoryManagementFunctions="true",
-        )
-        + ">",
-        "    <SourceFiles>",
-        *[f'      <File name="{s}"/>' for s in sources],
-        "    </SourceFiles>",
-        "  </CoSimulation>",
-        *_units_xml(vs, "  "),
-        "  <LogCategories>",
-        '    <Category name="logStatusError" description="errors: failed steps, refused calls"/>',
-        "  </LogCategories>",
-        "  <DefaultExperiment"
-        + _attr(startTime=m["start_time"], stopTime=m["stop_time"], stepSize=m["step_size"])
-        + "/>",
-        "  <ModelVariables>",
-    ]
-    for i, v in enumerate(vs):
-        kw: dict[str, object] = {
-            "name": v["name"],
-            "valueReference": i,
-            "description": v.get("description"),
-            "causality": v["causality"],
-            "variability": v["variability"],
-        }
-        inner: dict[str, object] = {}
-        if v["type"] == "Float64" and v.get("unit", "1") != "1":
-            inner["unit"] = v["unit"]
-        if v["causality"] in ("parameter", "input"):
-            if "min" in v:
-                inner["min"] = _num(v["min"], v["type"])
-            if "max" in v:
-                inner["max"] = _num(v["max"], v["type"])
-            inner["start"] = _num(v["start"], v["type"])
-        if v["causality"] == "output":
-            kw["initial"] = "calculated"
-        tname = "Real" if v["type"] == "Float64" else "Integer"
-        out.append(f"    <ScalarVariable{_attr(**kw)}><{tname}{_attr(**inner)}/></ScalarVariable>")
-    out.append("  </ModelVariables>")
-    out.append("  <ModelStructure>")
-    idx = [i + 1 for i, v in enumerate(vs) if v["causality"] == "output"]
-    out.append("    <Outputs>")
-    out += [f'      <Unknown index="{i}"/>' for i in idx]
-    out.append("    </Outputs>")
-    out.append("    <InitialUnknowns>")
-    out += [f'      <Unknown index="{i}"/>' for i in idx]
-    out.append("    </InitialUnknowns>")
-    out += ["  </ModelStructure>", "</fmiModelDescription>", ""]
-    return "\n".join(out)
-
-
-def gen_build_description(spec: dict) -> str:
-    """FMI 3.0 ``sources/buildDescription.xml``."""
-    m = spec["model"]
-    files = [*m["sources"], "solver.c", "fmi3_glue.c"]
-    return "\n".join(
-        [
-            '<?xml version="1.0" encoding="UTF-8"?>',
-            '<fmiBuildDescription fmiVersion="3.0">',
-            f'  <BuildConfiguration modelIdentifier="{m["identifier"]}">',
-            '    <SourceFileSet language="C99">',
-            *[f'      <SourceFile name="{f}"/>' for f in files],
-            "    </SourceFileSet>",
-            "  </BuildConfiguration>",
-            "</fmiBuildDescription>",
-            "",
-        ]
-    )
 
 
 def fmi_headers() -> Path:
