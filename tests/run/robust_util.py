@@ -78,3 +78,11 @@ def pids(pid_file: Path) -> list[int]:
 def log_texts(path: Path) -> list[tuple[str, str]]:
     """(stream, text) of every /dut/log line of a recording."""
     return [(d["stream"], d["text"]) for _, d in RecordingReader(path).iter_json("/dut/log")]
+
+
+def no_process_left(pid_file: Path) -> None:
+    """No process of the DUT (ids in ``pid_file``) or of its group is left."""
+    ids = pids(pid_file)
+    assert ids, "the DUT never wrote its process id"
+    assert not group_members(ids[0]), f"processes of the DUT's group outlived the run: {group_members(ids[0])}"
+    assert not any(alive(p) for p in ids), "a DUT process outlived the run"

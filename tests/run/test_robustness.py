@@ -1,4 +1,5 @@
-"""The run engine against misbehaving DUTs and signals.
+"""The run engine against misbehaving DUTs (the ``bench`` command as a process, and
+signals: test_robustness_cli.py).
 
 External DUTs are real processes (tests/run/duts/misbehave.py: the reference harness
 around an estimator that misbehaves on cue) on pty pairs and python-can udp_multicast
@@ -11,17 +12,11 @@ from __future__ import annotations
 import gc
 import json
 import os
-import signal
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from bench.cli.app import interrupts
-from bench.cli.app import run as bench_cli
-from bench.cli.info import describe
 from bench.dut.estimator import Estimator, EstimatorOutput, register_estimator
 from bench.faults.schedule import FaultSchedule
 from bench.record.mcap_io import RecordingReader
@@ -32,26 +27,12 @@ from bench.topics import NAV_SOLUTION_DTYPE
 from tests.run.robust_util import (
     SHORT,
     TABLES,
-    alive,
     dut_command,
-    group_members,
     log_texts,
+    no_process_left,
     pids,
-    wait_for,
 )
 from tests.transport import netns
-
-CLI = [sys.executable, "-c", "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
-       "from bench.cli import main; sys.exit(main())"]
-
-
-@pytest.fixture(scope="module")
-def ns():
-    reason = netns.unavailable()
-    if reason:
-        pytest.skip(f"udp_multicast between processes needs a network namespace: {reason}")
-    with netns.multicast_netns() as name:
-        yield name
 
 
 def _spec(out: Path, dut: DutSpec, *, port: int = 0, duration_s: float = 2.0, timeout_s: float = 2.0) -> RunSpec:
@@ -68,13 +49,6 @@ def _external(ns: str, tmp_path: Path, port: int, mode: str, *, startup_s: float
                   startup_timeout_s=startup_s, shutdown_timeout_s=1.0)
     spec = _spec(tmp_path / f"{mode}.mcap", dut, port=port)
     return netns.call_in(ns, lambda: run(spec)), pid_file
-
-
-def _no_process_left(pid_file: Path) -> None:
-    ids = pids(pid_file)
-    assert ids, "the DUT never wrote its process id"
-    assert not group_members(ids[0]), f"processes of the DUT's group outlived the run: {group_members(ids[0])}"
-    assert not any(alive(p) for p in ids), "a DUT process outlived the run"
 
 
 def _decoded(values: dict[str, str]) -> dict:
@@ -121,7 +95,7 @@ def test_a_dut_crashing_mid_run_ends_as_dut_error_with_its_exit_and_last_output(
     # everything up to the crash was exchanged and recorded
     sol = RecordingReader(res.path).read_columnar("/dut/nav_solution")
     assert 0.9e9 <= sol["t_ns"].max() < 1.0e9 + 1
-    _no_process_left(pid_file)
+    no_process_left(pid_file)
 
 
 @pytest.mark.slow
@@ -141,7 +115,7 @@ def test_a_dut_crashing_in_a_real_time_run_ends_it_at_once(ns, tmp_path):
     seen = float(res.reason.split("at bench time ")[1].split(" s")[0])
     assert len(died) == 1 and died[0] <= seen < died[0] + 5.0 and seen < 39.0
     assert _ended(res.path)[0]["status"] == "dut_error"
-    _no_process_left(pid_file)
+    no_process_left(pid_file)
 
 
 # ---------------------------------------------------------------------------------- (b) hang
@@ -160,7 +134,7 @@ def test_a_hanging_dut_ends_as_dut_error_after_the_lockstep_timeout(ns, tmp_path
     # it sleeps through SIGTERM (the harness only sets a flag), so it is killed
     assert dut_exit["terminated_in_time"] is False and dut_exit["exit"] == "on signal SIGKILL"
     assert ("stdout", "misbehave: hanging at 0.50 s") in log_texts(res.path)
-    _no_process_left(pid_file)
+    no_process_left(pid_file)
 
 
 # ---------------------------------------------------------------------------------- (c) never starts
@@ -174,7 +148,7 @@ def test_a_dut_exiting_at_start_up_ends_as_dut_error(ns, tmp_path):
     end, dut_exit = _ended(res.path)
     assert end["status"] == "dut_error" and dut_exit["exit_code"] == 2
     assert ("stderr", "misbehave: cannot open the IMU device: no such file") in log_texts(res.path)
-    _no_process_left(pid_file)
+    no_process_left(pid_file)
 
 
 @pytest.mark.slow
@@ -189,7 +163,7 @@ def test_a_dut_that_never_answers_ends_as_dut_error_at_the_start_up_timeout(ns, 
     assert ("stdout", "misbehave: warming up the gyros ...") in log_texts(res.path)
     tx = RecordingReader(res.path).read_columnar("/wire/can/tx")
     assert len(tx) >= 5  # BENCH_TIME(0) repeated while waiting, all recorded
-    _no_process_left(pid_file)
+    no_process_left(pid_file)
 
 
 @pytest.mark.slow
@@ -211,7 +185,7 @@ def test_a_dut_flooding_the_bus_ends_as_dut_error(ns, tmp_path):
     assert end["status"] == "dut_error" and dut_exit["terminated_in_time"] is True
     rx = RecordingReader(res.path).read_columnar("/wire/can/rx")
     assert len(rx) > 200  # what it sent is recorded
-    _no_process_left(pid_file)
+    no_process_left(pid_file)
 
 
 # ---------------------------------------------------------------------------------- (e) orphans
@@ -224,7 +198,7 @@ def test_a_dut_ignoring_sigterm_is_killed_with_its_children(ns, tmp_path):
     assert end["status"] == "complete"
     assert dut_exit["terminated_in_time"] is False
     assert dut_exit["ended"] == "killed: still running 1 s after SIGTERM"
-    _no_process_left(pid_file)
+    no_process_left(pid_file)
 
 
 # ---------------------------------------------------------------------------------- (f) in process
@@ -279,181 +253,3 @@ def test_an_in_process_estimator_that_fails_to_configure_ends_as_dut_error(tmp_p
     assert res.status == "dut_error"
     assert "the estimator 'bad_config' failed to start: KeyError: 'lever_arm'" in res.reason
     assert _ended(res.path)[0]["status"] == "dut_error"
-
-
-# ---------------------------------------------------------------------------------- signals
-def test_sigterm_and_sigint_raise_keyboard_interrupt_once_then_are_reported_then_abort(capsys):
-    before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    with interrupts():
-        with pytest.raises(KeyboardInterrupt) as first:
-            signal.raise_signal(signal.SIGTERM)
-        assert first.value.args == ("SIGTERM",)
-        signal.raise_signal(signal.SIGINT)  # second: reported, cleanup goes on
-        assert "still finishing the recording" in capsys.readouterr().err
-        with pytest.raises(KeyboardInterrupt):
-            signal.raise_signal(signal.SIGINT)  # third: abort
-    assert {s: signal.getsignal(s) for s in before} == before
-
-
-def _case(tmp_path: Path, mode: str, **config) -> Path:
-    """A test case running the misbehaving DUT over udp_multicast (default port) for 90 s."""
-    cfg = ", ".join(f"{k} = {json.dumps(v)}" for k, v in {"mode": mode, **config}.items())
-    text = f"""
-[case]
-id = "ROBUST"
-title = "misbehaving DUT"
-requirements = ["R"]
-
-[scenario]
-script = "{SHORT}"
-
-[sensors]
-imu = {{ grade = "navigation", rate = "200 Hz" }}
-
-[dut]
-kind = "external"
-command = "{dut_command(None, None)}"
-config = {{ {cfg} }}
-startup_timeout = "20 s"
-shutdown_timeout = "2 s"
-
-[dut.links]
-can = {{ interface = "udp_multicast", channel = "239.74.164.201" }}
-
-[clock]
-mode = "lockstep"
-timeout = "5 s"
-
-[run]
-seeds = [1]
-truth_rate = "1000 Hz"
-
-[[criterion]]
-requirement = "R"
-metric = "accuracy.horizontal.max"
-at_most = "5 m"
-"""
-    path = tmp_path / "robust.toml"
-    path.write_text(text)
-    return path
-
-
-def _bench_run(ns: str, case: Path, out: Path) -> subprocess.Popen:
-    return subprocess.Popen(["ip", "netns", "exec", ns, *CLI, "run", str(case), "-o", str(out), "-q", "--no-plots"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
-
-
-def _recording(out: Path) -> Path:
-    return out / "recordings" / "ROBUST" / "ROBUST-s1.mcap"
-
-
-def _bench_time(progress: Path) -> float:
-    """Bench time the DUT reports having reached, s (-1 before it wrote any)."""
-    try:
-        return float(progress.read_text() or -1)
-    except (FileNotFoundError, ValueError):
-        return -1.0
-
-
-def _has_truth(path: Path) -> bool:
-    if not path.exists():
-        return False
-    info = RecordingReader(path).topics().get("/truth")
-    return info is not None and info.messages > 0
-
-
-@pytest.mark.slow
-def test_bench_run_with_a_crashing_dut_exits_cleanly_with_the_reason(ns, tmp_path):
-    pid_file = tmp_path / "pids"
-    case = _case(tmp_path, "crash_exit", at_s=1.0, pid_file=str(pid_file))
-    p = _bench_run(ns, case, tmp_path / "out")
-    stdout, stderr = p.communicate(timeout=120)
-    assert "Traceback" not in stderr
-    results = json.loads((tmp_path / "out" / "results.json").read_text())
-    run_json = results["cases"][0]["runs"][0]
-    # the bench could not judge a DUT that crashed: ERROR, exit code 3 (issue 5, ICD 6)
-    assert (results["cases"][0]["verdict"], p.returncode) == ("ERROR", 3), (stdout, stderr)
-    assert any("gyro channel X saturated" in issue for issue in run_json["bench_issues"])  # the reason is reported
-    end = describe(str(_recording(tmp_path / "out")))["ended"]
-    assert end["status"] == "dut_error" and "exited with code 3" in end["reason"]
-    _no_process_left(pid_file)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
-def test_sigint_and_sigterm_finish_the_recording_and_stop_the_dut(ns, tmp_path, sig):
-    pid_file = tmp_path / "pids"
-    progress = tmp_path / "progress"
-    case = _case(tmp_path, "slow", delay_s=0.003, pid_file=str(pid_file), progress_file=str(progress))
-    out = tmp_path / "out"
-    p = _bench_run(ns, case, out)
-    try:
-        wait_for(lambda: _bench_time(progress) >= 2.0, 60, "the run to reach 2 s of bench time")
-        p.send_signal(sig)
-        _, stderr = p.communicate(timeout=60)
-    finally:
-        if p.poll() is None:
-            os.killpg(p.pid, signal.SIGKILL)
-            p.wait()
-    assert p.returncode == 3, stderr
-    assert f"bench: interrupted by {sig.name}" in stderr and "Traceback" not in stderr
-    d = describe(str(_recording(out)))
-    assert d["complete"] is True
-    assert d["ended"] == {"status": "interrupted", "reason": f"interrupted by {sig.name}"}
-    assert d["metadata"]["dut_exit"]["ended"] == "exited on SIGTERM"
-    sol = RecordingReader(_recording(out)).read_columnar("/dut/nav_solution")
-    # the DUT got to step 2.0 s only after the bench had its answers up to 1.99 s
-    assert d["topics"]["/dut/nav_solution"]["samples"] == len(sol) and sol["t_ns"].max() >= 1_990_000_000
-    assert any("harness: stopped on a signal" in t for _, t in log_texts(_recording(out)))
-    _no_process_left(pid_file)
-
-
-@pytest.mark.slow
-def test_sigkill_leaves_a_readable_recording_and_the_harness_exits_on_hang_up(ns, tmp_path, capsys):
-    pid_file = tmp_path / "pids"
-    progress = tmp_path / "progress"
-    case = _case(tmp_path, "slow", delay_s=0.003, pid_file=str(pid_file), progress_file=str(progress))
-    out = tmp_path / "out"
-    p = _bench_run(ns, case, out)
-    try:
-        dut = wait_for(lambda: pids(pid_file), 60, "the DUT to start")[0]
-        wait_for(lambda: _has_truth(_recording(out)), 60, "the first chunk of the recording")
-        wait_for(lambda: _bench_time(progress) >= 1.0, 60, "the run to reach 1 s of bench time")
-        p.kill()
-        p.wait(timeout=10)
-    finally:
-        if p.poll() is None:
-            os.killpg(p.pid, signal.SIGKILL)
-            p.wait()
-    assert p.returncode == -signal.SIGKILL
-    # bench info reads the unfinished file up to its last complete chunk
-    assert bench_cli(["info", "--json", str(_recording(out))]) == 0
-    d = json.loads(capsys.readouterr().out)
-    assert d["complete"] is False
-    assert d["ended"]["status"] == "unfinished"
-    assert d["metadata"]["run_start"]["dut_kind"] == "external"
-    truth = d["topics"]["/truth"]
-    assert truth["samples"] > 1000 and truth["span_s"][0] == 0.0
-    assert RecordingReader(_recording(out)).read_columnar("/truth")["t_ns"].size == truth["samples"]
-    # nobody stops the DUT: it notices that the bench hung up its pty lines and exits
-    wait_for(lambda: not alive(dut), 20, "the orphaned DUT to exit")
-    wait_for(lambda: not group_members(dut), 5, "the DUT's group to end")
-
-
-@pytest.mark.slow
-def test_sigterm_finishes_a_bench_synth_recording(tmp_path):
-    out = tmp_path / "s000.mcap"
-    p = subprocess.Popen([*CLI, "synth", "S000", "-o", str(out), "-q"], stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True)
-    try:
-        wait_for(lambda: _has_truth(out), 120, "the first chunk of the recording")
-        p.send_signal(signal.SIGTERM)
-        _, stderr = p.communicate(timeout=60)
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    assert p.returncode == 3 and "bench: interrupted by SIGTERM" in stderr
-    d = describe(str(out))
-    assert d["complete"] is True and d["ended"]["status"] == "interrupted"
-    assert 0 < d["span_s"][1] < 3600.0  # stopped early
