@@ -35,6 +35,15 @@ __all__ = ["Traffic", "TrafficEncoder", "slice_window", "faulted", "BENCH_TIME_I
 BENCH_TIME_ID = codec("BENCH_TIME").frame_id
 #: BENCH_CMD codes by name (ICD 2.1).
 COMMAND_CODES = {"grid": 1, "geographic": 2, "reset": 3}
+#: CAN messages from sensor records: sensor -> (message, {signal: record field}).
+_CAN_SAMPLES = {
+    "odometer": ("ODOMETER", {"pulse_count": "pulses", "speed": "speed", "reverse": "reverse", "valid": "valid"}),
+    "doppler": ("DOPPLER", {"speed": "speed", "quality": "quality", "valid": "valid", "low_signal": "low_signal"}),
+    "driver": (
+        "DRIVER_INPUT",
+        {"left_lever": "left_lever", "right_lever": "right_lever", "steering": "steering", "brake": "brake"},
+    ),
+}
 
 
 @dataclass
@@ -139,42 +148,10 @@ class TrafficEncoder:
         first = t0_ns == 0
         enc = self.encoder
         parts: list[CanBatch] = []
-        rec = records.get(self._topic.get("odometer", ""))
-        if rec is not None and len(rec):
-            parts.append(
-                enc.encode(
-                    "ODOMETER",
-                    rec["t_ns"],
-                    pulse_count=rec["pulses"],
-                    speed=rec["speed"],
-                    reverse=rec["reverse"],
-                    valid=rec["valid"],
-                )
-            )
-        rec = records.get(self._topic.get("doppler", ""))
-        if rec is not None and len(rec):
-            parts.append(
-                enc.encode(
-                    "DOPPLER",
-                    rec["t_ns"],
-                    speed=rec["speed"],
-                    quality=rec["quality"],
-                    valid=rec["valid"],
-                    low_signal=rec["low_signal"],
-                )
-            )
-        rec = records.get(self._topic.get("driver", ""))
-        if rec is not None and len(rec):
-            parts.append(
-                enc.encode(
-                    "DRIVER_INPUT",
-                    rec["t_ns"],
-                    left_lever=rec["left_lever"],
-                    right_lever=rec["right_lever"],
-                    steering=rec["steering"],
-                    brake=rec["brake"],
-                )
-            )
+        for sensor, (message, fields) in _CAN_SAMPLES.items():
+            rec = records.get(self._topic.get(sensor, ""))
+            if rec is not None and len(rec):
+                parts.append(enc.encode(message, rec["t_ns"], **{sig: rec[col] for sig, col in fields.items()}))
         t_ep = self._periodic(self.epoch_period_ns, t0_ns, t1_ns, first)
         if len(t_ep):
             parts.append(enc.encode("BENCH_EPOCH", t_ep, epoch_utc_ns=np.full(len(t_ep), self.epoch_ns)))
