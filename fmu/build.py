@@ -183,6 +183,7 @@ def build_model(folder: Path, out: Path, versions: list[str], stamp: str = "2025
             f"binaries/{binary_dir(fmi)}/{ident}{_lib_suffix()}": lib.read_bytes(),
             "sources/vars.h": header.encode(),
             "sources/model.h": (HERE / "src" / "model.h").read_bytes(),
+            "sources/hull.h": (HERE / "src" / "hull.h").read_bytes(),
             "sources/solver.c": (HERE / "src" / "solver.c").read_bytes(),
             f"sources/fmi{fmi}_glue.c": (HERE / "src" / f"fmi{fmi}_glue.c").read_bytes(),
             "documentation/model.toml": (folder / "model.toml").read_bytes(),

@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
+import ctypes
 import math
+import shutil
+import subprocess
+import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -156,3 +161,28 @@ def test_fmi2_and_fmi3_builds_agree(fmu_build):
     _, a = run_fmu(fmu_build / "TrackedVehicle.fmu", 8.0, outs, inputs={"throttle": 0.5}, changes=changes)
     _, b = run_fmu(fmu_build / "TrackedVehicle_fmi2.fmu", 8.0, outs, inputs={"throttle": 0.5}, changes=changes)
     assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("name", ["TrackedVehicle", "TrackedVehicle_fmi2", "WheeledVehicle", "WheeledVehicle_fmi2"])
+def test_the_sources_in_each_fmu_build_on_their_own(fmu_build, name, tmp_path):
+    """A source FMU: sources/ holds every file its C sources include, and builds into a
+    library exporting the FMI functions its model description names."""
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        pytest.skip("a C compiler is needed")
+    with zipfile.ZipFile(fmu_build / f"{name}.fmu") as zf:
+        zf.extractall(tmp_path)
+    import fmpy
+
+    headers = Path(fmpy.__file__).parent / "c-code"
+    lib = tmp_path / "model.so"
+    sources = sorted(str(p) for p in (tmp_path / "sources").glob("*.c"))
+    subprocess.run([cc, "-shared", "-fPIC", "-D_GNU_SOURCE", "-I", str(tmp_path / "sources"), "-I", str(headers),
+                    *sources, "-o", str(lib), "-lm"], check=True, capture_output=True)
+    so = ctypes.CDLL(str(lib))
+    exports = {
+        "fmi2": ("fmi2Instantiate", "fmi2DoStep", "fmi2GetReal", "fmi2FreeInstance"),
+        "fmi3": ("fmi3InstantiateCoSimulation", "fmi3DoStep", "fmi3GetFloat64", "fmi3FreeInstance"),
+    }
+    for fn in exports["fmi2" if name.endswith("fmi2") else "fmi3"]:
+        assert hasattr(so, fn), f"{name}: {fn} is not exported"

@@ -31,10 +31,8 @@
 #include <math.h>
 #include <stddef.h>
 
+#include "hull.h"
 #include "model.h"
-
-#define G0 9.80665
-#define P(name) (m->v[VR_##name])
 
 static double lever_ratio(double lever, double ratio_I) {
     long l = lround(lever);
@@ -43,28 +41,13 @@ static double lever_ratio(double lever, double ratio_I) {
 
 static double sabs(double x) { return sqrt(x * x + 1e-8) - 1e-4; } /* smooth |x| */
 
-static double clamp(double x, double lo, double hi) { return x < lo ? lo : (x > hi ? hi : x); }
-
-/* v := Rx(a) v and v := Ry(a) v, active rotations (ICD convention) */
-static void rot_x(double a, double *v) {
-    double c = cos(a), s = sin(a), y = v[1], z = v[2];
-    v[1] = c * y - s * z;
-    v[2] = s * y + c * z;
-}
-
-static void rot_y(double a, double *v) {
-    double c = cos(a), s = sin(a), x = v[0], z = v[2];
-    v[0] = c * x + s * z;
-    v[2] = -s * x + c * z;
-}
-
 typedef struct {
     double vl, vr, c, u_kin, r_star, slip, du, psi_dot;
 } Aux;
 
 static void evaluate(const Model *m, const double *x, Aux *a, double *dx) {
     const double vD = x[X_vD], kl = x[X_kl], kr = x[X_kr], u = x[X_u], r = x[X_r], v = x[X_v];
-    const double grade = P(grade), bank = P(bank), W = P(m) * G0 * cos(grade);
+    const double grade = P(grade), W = P(m) * G0 * cos(grade);
     a->vl = kl * vD;
     a->vr = kr * vD;
     /* slip coefficient as a function of the speed ratio of the slow to the fast side */
@@ -112,13 +95,7 @@ static void evaluate(const Model *m, const double *x, Aux *a, double *dx) {
     /* seed eq. (6): v_x = -heading_rate L; on level ground heading_rate = -r */
     dx[X_v] = (r * P(L) - v) / P(tau_lat);
     /* suspension: pitch toward grade + k_pitch a_x, roll toward bank + k_roll a_y */
-    const double wn = 2.0 * M_PI * P(f_susp), z = P(zeta_susp);
-    dx[X_th] = x[X_thd];
-    dx[X_thd] = wn * wn * (grade + P(k_pitch) * a->du - x[X_th]) - 2.0 * z * wn * x[X_thd];
-    dx[X_ga] = x[X_gad];
-    dx[X_gad] = wn * wn * (bank + P(k_roll) * u * r - x[X_ga]) - 2.0 * z * wn * x[X_gad];
-    /* heading from the yaw rate about body up: omega_z = sg thd - cg ct psi_dot */
-    dx[X_psi] = (sin(x[X_ga]) * x[X_thd] - r) / (cos(x[X_ga]) * cos(x[X_th]));
+    hull_rates(m, x, P(k_pitch) * a->du, P(k_roll) * u * r, r, dx);
 }
 
 const char *model_check(const Model *m) {
@@ -150,23 +127,7 @@ void model_outputs(Model *m) {
     Aux a;
     double dx[N_STATES];
     evaluate(m, m->x, &a, dx);
-    const double th = m->x[X_th], ga = m->x[X_ga], thd = m->x[X_thd], gad = m->x[X_gad];
-    const double psid = dx[X_psi];
-    /* velocity along the terrain (right, forward, 0) to body axes: Ry(-ga) Rx(grade - th) Ry(bank) */
-    double vb[3] = {m->x[X_v], m->x[X_u], 0.0};
-    rot_y(P(bank), vb);
-    rot_x(P(grade) - th, vb);
-    rot_y(-ga, vb);
-    P(v_x) = vb[0];
-    P(v_y) = vb[1];
-    P(v_z) = vb[2];
-    const double st = sin(th), ct = cos(th), sg = sin(ga), cg = cos(ga);
-    P(omega_x) = cg * thd + sg * ct * psid;
-    P(omega_y) = gad - st * psid;
-    P(omega_z) = sg * thd - cg * ct * psid;
-    P(pitch) = th;
-    P(roll) = ga;
-    P(heading) = m->x[X_psi];
+    hull_outputs(m, m->x[X_v], m->x[X_u], dx[X_psi]); /* v is to the right already */
     P(v_sprocket_left) = a.vl;
     P(v_sprocket_right) = a.vr;
     P(v_drive) = m->x[X_vD];

@@ -21,24 +21,8 @@
 #include <math.h>
 #include <stddef.h>
 
+#include "hull.h"
 #include "model.h"
-
-#define G0 9.80665
-#define P(name) (m->v[VR_##name])
-
-static double clamp(double x, double lo, double hi) { return x < lo ? lo : (x > hi ? hi : x); }
-
-static void rot_x(double a, double *v) {
-    double c = cos(a), s = sin(a), y = v[1], z = v[2];
-    v[1] = c * y - s * z;
-    v[2] = s * y + c * z;
-}
-
-static void rot_y(double a, double *v) {
-    double c = cos(a), s = sin(a), x = v[0], z = v[2];
-    v[0] = c * x + s * z;
-    v[2] = -s * x + c * z;
-}
 
 static double slip_of(double X_dem, double Fmax, double kappa_c) {
     double q = X_dem / Fmax;
@@ -79,12 +63,7 @@ static void evaluate(const Model *m, const double *x, Aux *o, double *dx) {
     const double target = front ? slip_of(Xf_dem, P(mu) * Fzf, P(kappa_c)) : slip_of(Xr_dem, P(mu) * Fzr, P(kappa_c));
     dx[X_sig] = (target - x[X_sig]) / P(tau_wheel);
     dx[X_delta] = (P(steering) - delta) / P(tau_steer);
-    const double wn = 2.0 * M_PI * P(f_susp), z = P(zeta_susp);
-    dx[X_th] = x[X_thd];
-    dx[X_thd] = wn * wn * (grade + P(k_pitch) * (o->du - v * r) - x[X_th]) - 2.0 * z * wn * x[X_thd];
-    dx[X_ga] = x[X_gad];
-    dx[X_gad] = wn * wn * (bank + P(k_roll) * o->a_lat - x[X_ga]) - 2.0 * z * wn * x[X_gad];
-    dx[X_psi] = (sin(x[X_ga]) * x[X_thd] - r) / (cos(x[X_ga]) * cos(x[X_th]));
+    hull_rates(m, x, P(k_pitch) * (o->du - v * r), P(k_roll) * o->a_lat, r, dx);
 }
 
 const char *model_check(const Model *m) {
@@ -113,21 +92,7 @@ void model_outputs(Model *m) {
     Aux o;
     double dx[N_STATES];
     evaluate(m, m->x, &o, dx);
-    const double th = m->x[X_th], ga = m->x[X_ga], thd = m->x[X_thd], gad = m->x[X_gad], psid = dx[X_psi];
-    double vb[3] = {-m->x[X_v], m->x[X_u], 0.0}; /* RFU along the terrain */
-    rot_y(P(bank), vb);
-    rot_x(P(grade) - th, vb);
-    rot_y(-ga, vb);
-    P(v_x) = vb[0];
-    P(v_y) = vb[1];
-    P(v_z) = vb[2];
-    const double st = sin(th), ct = cos(th), sg = sin(ga), cg = cos(ga);
-    P(omega_x) = cg * thd + sg * ct * psid;
-    P(omega_y) = gad - st * psid;
-    P(omega_z) = sg * thd - cg * ct * psid;
-    P(pitch) = th;
-    P(roll) = ga;
-    P(heading) = m->x[X_psi];
+    hull_outputs(m, -m->x[X_v], m->x[X_u], dx[X_psi]); /* v is to the left inside */
     P(slip) = m->x[X_sig];
     P(v_wheel) = m->x[X_u] * (1.0 + m->x[X_sig]);
     P(a_lat) = o.a_lat;
