@@ -47,6 +47,13 @@ def _fixes(items) -> np.ndarray:
     return f
 
 
+def _steady_fixes(n: int) -> np.ndarray:
+    """``n`` fixes one second apart, all with the same position, velocity and accuracy."""
+    common = {"cs": 0, "lat": 34.2, "lon": 108.9, "h": 380.0, "ve": 1.0, "vn": 2.0, "s": (1.0, 2.0, 3.0), "sats": 12,
+              "hdop": 0.9, "quality": 1}
+    return _fixes([{"utc_s": 1_748_736_000 + k, **common} for k in range(n)])
+
+
 @settings(max_examples=150, deadline=None)
 @given(st.lists(FIX, min_size=1, max_size=4), st.sampled_from(["GB", "BD", "GN"]))
 def test_pynmea2_parses_every_sentence_to_the_values_meant(items, talker):
@@ -151,24 +158,7 @@ def test_parse_errors():
 
 
 def test_stream_counts_bad_sentences_and_missing_ones():
-    f = _fixes(
-        [
-            {
-                "utc_s": 1_748_736_000 + k,
-                "cs": 0,
-                "lat": 34.2,
-                "lon": 108.9,
-                "h": 380.0,
-                "ve": 1.0,
-                "vn": 2.0,
-                "s": (1.0, 2.0, 3.0),
-                "sats": 12,
-                "hdop": 0.9,
-                "quality": 1,
-            }
-            for k in range(6)
-        ]
-    )
+    f = _steady_fixes(6)
     chunks = [c.data for c in encode_epochs(f).chunks()]
     bad_sum = chunks[1][:-4] + (b"%02X" % (int(chunks[1][-4:-2], 16) ^ 0x21)) + b"\r\n"
     stream = (
@@ -284,24 +274,7 @@ def test_outage_sentences_and_range_errors():
 
 
 def test_outage_styles():
-    f = _fixes(
-        [
-            {
-                "utc_s": 1_748_736_000 + k,
-                "cs": 0,
-                "lat": 34.2,
-                "lon": 108.9,
-                "h": 380.0,
-                "ve": 1.0,
-                "vn": 2.0,
-                "s": (1.0, 2.0, 3.0),
-                "sats": 12,
-                "hdop": 0.9,
-                "quality": 1,
-            }
-            for k in range(3)
-        ]
-    )
+    f = _steady_fixes(3)
     lines = [c.data for c in encode_epochs(f, outage_style=[0, 1, 2]).chunks()]
     assert len(lines) == 10  # the silent epoch sends nothing
     assert lines[5].startswith(b"$GBRMC,000001.00,V,") and b",0,12," in lines[6]
