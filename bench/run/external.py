@@ -297,15 +297,16 @@ class ExternalDut:
         k = 0
         next_check = self.now_ns  # the DUT process is checked every 100 ms of bench time
         times, kinds, index = plan.times, plan.kinds, plan.index
+        on_can, on_imu = EMIT_CAN, EMIT_IMU  # locals: no global lookups per emission
         n = len(times)
         while k < n:
             t = times[k]
             timing.add(t, clock.wait_until(t))
             while k < n and times[k] == t:
                 kind, i = kinds[k], index[k]
-                if kind == EMIT_CAN:
+                if kind == on_can:
                     send_can(plan.can[i])
-                elif kind == EMIT_IMU:
+                elif kind == on_imu:
                     write_imu(plan.imu[i])
                 else:
                     write_gnss(plan.gnss[i])
