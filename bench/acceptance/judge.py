@@ -3,8 +3,10 @@
 :func:`score_recording` judges one recording against its test case (the one attached to
 the recording unless another is given): integrity first (bench-side failures make every
 criterion ERROR, a ``dut_error`` ending makes the run FAIL), then every criterion of the
-run's variant from the recording alone. :func:`judge_case` combines the runs of a case
-(variants, Monte Carlo seeds, variant comparisons) into criterion and case verdicts.
+run's variant from the recording alone -- the case's own criteria and the default output
+integrity criteria (:mod:`bench.acceptance.integrity_criteria`) it was loaded with.
+:func:`judge_case` combines the runs of a case (variants, Monte Carlo seeds, variant
+comparisons) into criterion and case verdicts.
 
 Live runs are judged by scoring their finished recording with the very same functions,
 so ``bench score`` reproduces a live verdict bit for bit.
@@ -19,6 +21,7 @@ from typing import Any
 
 from bench.acceptance.case import TestCase, parse_case
 from bench.acceptance.criteria import Aggregate, Criterion, RunValue, aggregate_runs, judge_value
+from bench.acceptance.integrity_criteria import waivers
 from bench.acceptance.verdict import Verdict, worst
 from bench.errors import ConfigError, RecordingError
 from bench.scoring.data import DutDataError, NoDataError, RunData, load_run
@@ -72,6 +75,7 @@ class CaseResult:
     errors: list[str] = field(default_factory=list)
     case: TestCase | None = None
     elapsed_s: float = 0.0
+    waived: list[dict[str, str]] = field(default_factory=list)  # integrity checks the case switched off
 
 
 def case_of(run: RunData) -> TestCase:
@@ -168,6 +172,7 @@ def judge_case(case: TestCase, runs: list[RunResult], errors: list[str] | None =
     """Combine the runs of a case into per-criterion and case verdicts."""
     out = CaseResult(case.id, case.title, case.file_name, case.requirements, Verdict.PASS, runs=runs, case=case)
     out.errors = list(errors or [])
+    out.waived = waivers(case.scoring)
     variants = case.variants()
     for c in case.criteria:
         targets = [c.variant] if c.variant is not None else variants
