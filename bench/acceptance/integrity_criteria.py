@@ -113,7 +113,7 @@ def parse_integrity(t: Table | None, convergence_ns: int) -> OutputIntegrity:
         if limits[check.key] > check.limit:
             loosened.append(check.key)
     d = EpochBounds()
-    jump = t.time_ns("jump", d.jump_ns, positive=True)
+    jump = t.time_ns("jump", f"{d.jump_ns} ns", positive=True)
     speed = t.quantity("speed", "velocity", "m/s", d.speed_mps, positive=True)
     height = d.height_m
     raw_h = t.raw("height")

@@ -2,7 +2,8 @@
 
 :func:`score_recording` judges one recording against its test case (the one attached to
 the recording unless another is given): integrity first (bench-side failures make every
-criterion ERROR, a ``dut_error`` ending makes the run FAIL), then every criterion of the
+criterion ERROR, a ``dut_error`` ending makes the run FAIL; a failed output-integrity
+criterion makes what the DUT's output leaves unmeasurable FAIL), then every criterion of the
 run's variant from the recording alone -- the case's own criteria and the default output
 integrity criteria (:mod:`bench.acceptance.integrity_criteria`) it was loaded with.
 :func:`judge_case` combines the runs of a case (variants, Monte Carlo seeds, variant
@@ -21,7 +22,7 @@ from typing import Any
 
 from bench.acceptance.case import TestCase, parse_case
 from bench.acceptance.criteria import Aggregate, Criterion, RunValue, aggregate_runs, judge_value
-from bench.acceptance.integrity_criteria import waivers
+from bench.acceptance.integrity_criteria import PREFIX, waivers
 from bench.acceptance.verdict import Verdict, worst
 from bench.errors import ConfigError, RecordingError
 from bench.scoring.data import DutDataError, NoDataError, RunData, load_run
@@ -91,6 +92,13 @@ def _applies(c: Criterion, variant: str | None) -> bool:
     return c.variant is None or c.variant == variant
 
 
+def _judged(c: Criterion, variant: str | None) -> bool:
+    """Whether a run of ``variant`` measures ``c`` (a comparison: both its variants)."""
+    if c.relative_to is not None:
+        return variant in (c.variant, c.relative_to)
+    return _applies(c, variant)
+
+
 def score_run(run: RunData, case: TestCase) -> RunResult:
     """Judge one loaded recording against ``case``."""
     variant = run.run_start.get("variant") or None
@@ -108,13 +116,14 @@ def score_run(run: RunData, case: TestCase) -> RunResult:
     scorer = Scorer(run, replace(case.scoring, budget_ns=budget))
     integ = scorer.integrity()
     result = RunResult(str(run.path), case.id, variant, seed, Verdict.PASS, integ.bench, integ.dut, timing=integ.timing)
-    for c in case.criteria:
+    criteria = [c for c in case.criteria if _judged(c, variant)]
+    # the output-integrity defaults first: what a DUT's broken output keeps the bench from
+    # measuring is the DUT's failure (FAIL), not the bench's (ERROR)
+    checked = {c.id: _measure(scorer, c, seed, integ.bench, integ.dut) for c in criteria if c.id.startswith(PREFIX)}
+    broken = [f"its output failed {k}" for k, v in checked.items() if v.verdict is Verdict.FAIL]
+    for c in criteria:
         compared = c.relative_to is not None
-        if compared and variant not in (c.variant, c.relative_to):
-            continue
-        if not compared and not _applies(c, variant):
-            continue
-        rv = _measure(scorer, c, seed, integ.bench, integ.dut)
+        rv = checked[c.id] if c.id in checked else _measure(scorer, c, seed, integ.bench, integ.dut + broken)
         if compared:
             result.raw[c.id] = rv
         else:
