@@ -76,7 +76,12 @@ def distinct(t_ns: np.ndarray) -> np.ndarray:
 def repeated(t_ns: np.ndarray) -> tuple[int, dict]:
     """Arrivals (in arrival order) whose time of validity was delivered before."""
     n = len(t_ns) - len(distinct(t_ns))
-    return n, {}
+    if n == 0:
+        return 0, {}
+    _, first = np.unique(t_ns, return_index=True)
+    again = np.ones(len(t_ns), dtype=bool)
+    again[first] = False
+    return n, {"first_t_s": float(t_ns[np.argmax(again)]) * 1e-9}
 
 
 def out_of_order(t_ns: np.ndarray) -> tuple[int, dict]:
