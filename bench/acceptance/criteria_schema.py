@@ -12,6 +12,7 @@ from typing import Any
 
 from bench.acceptance.case import ClockSpec, DutSpec, RunSpec
 from bench.acceptance.criteria import AGGREGATES, COMPARATORS, Criterion, Limit, MonteCarlo
+from bench.acceptance.integrity_criteria import parse_integrity
 from bench.acceptance.tomlcheck import Table, type_name
 from bench.scenario.motion import GNSS_FLAGS, SEGMENT_KINDS
 from bench.scoring.faults import FLAGS, FaultSettings, target_bit
@@ -71,7 +72,8 @@ def window_spec(value: Any, owner: Table, key: str, named: Mapping[str, WindowSp
 
 
 def scoring_settings(t: Table | None, dut: DutSpec, clock: ClockSpec) -> ScoringSettings:
-    """``[scoring]``: convergence, named windows, fault, frame-switch and consistency settings."""
+    """``[scoring]``: convergence, named windows, fault, frame-switch, consistency and
+    output-integrity settings."""
     period = round(1e9 / dut.output_rate_hz)
     budget = clock.budget_ns if clock.mode == "realtime" else None
     if t is None:
@@ -115,8 +117,9 @@ def scoring_settings(t: Table | None, dut: DutSpec, clock: ClockSpec) -> Scoring
         ct.finish()
         if not 0.0 < confidence < 1.0:
             raise ct.error("confidence", f"expected a probability between 0 and 1 (or %), found {confidence:g}")
+    integrity = parse_integrity(t.table("integrity"), int(convergence))  # type: ignore[arg-type]
     t.finish()
-    return ScoringSettings(int(convergence), named, faults, switches, confidence, period, budget)  # type: ignore[arg-type]
+    return ScoringSettings(int(convergence), named, faults, switches, confidence, period, budget, integrity)  # type: ignore[arg-type]
 
 
 # -- criteria ------------------------------------------------------------------------------

@@ -2,9 +2,12 @@
 
 :func:`score_recording` judges one recording against its test case (the one attached to
 the recording unless another is given): integrity first (bench-side failures make every
-criterion ERROR, a ``dut_error`` ending makes the run FAIL), then every criterion of the
-run's variant from the recording alone. :func:`judge_case` combines the runs of a case
-(variants, Monte Carlo seeds, variant comparisons) into criterion and case verdicts.
+criterion ERROR, a ``dut_error`` ending makes the run FAIL; a failed output-integrity
+criterion makes what the DUT's output leaves unmeasurable FAIL), then every criterion of the
+run's variant from the recording alone -- the case's own criteria and the default output
+integrity criteria (:mod:`bench.acceptance.integrity_criteria`) it was loaded with.
+:func:`judge_case` combines the runs of a case (variants, Monte Carlo seeds, variant
+comparisons) into criterion and case verdicts.
 
 Live runs are judged by scoring their finished recording with the very same functions,
 so ``bench score`` reproduces a live verdict bit for bit.
@@ -19,6 +22,7 @@ from typing import Any
 
 from bench.acceptance.case import TestCase, parse_case
 from bench.acceptance.criteria import Aggregate, Criterion, RunValue, aggregate_runs, judge_value
+from bench.acceptance.integrity_criteria import PREFIX, waivers
 from bench.acceptance.verdict import Verdict, worst
 from bench.errors import ConfigError, RecordingError
 from bench.scoring.data import DutDataError, NoDataError, RunData, load_run
@@ -72,6 +76,7 @@ class CaseResult:
     errors: list[str] = field(default_factory=list)
     case: TestCase | None = None
     elapsed_s: float = 0.0
+    waived: list[dict[str, str]] = field(default_factory=list)  # integrity checks the case switched off
 
 
 def case_of(run: RunData) -> TestCase:
@@ -85,6 +90,13 @@ def case_of(run: RunData) -> TestCase:
 
 def _applies(c: Criterion, variant: str | None) -> bool:
     return c.variant is None or c.variant == variant
+
+
+def _judged(c: Criterion, variant: str | None) -> bool:
+    """Whether a run of ``variant`` measures ``c`` (a comparison: both its variants)."""
+    if c.relative_to is not None:
+        return variant in (c.variant, c.relative_to)
+    return _applies(c, variant)
 
 
 def score_run(run: RunData, case: TestCase) -> RunResult:
@@ -104,13 +116,14 @@ def score_run(run: RunData, case: TestCase) -> RunResult:
     scorer = Scorer(run, replace(case.scoring, budget_ns=budget))
     integ = scorer.integrity()
     result = RunResult(str(run.path), case.id, variant, seed, Verdict.PASS, integ.bench, integ.dut, timing=integ.timing)
-    for c in case.criteria:
+    criteria = [c for c in case.criteria if _judged(c, variant)]
+    # the output-integrity defaults first: what a DUT's broken output keeps the bench from
+    # measuring is the DUT's failure (FAIL), not the bench's (ERROR)
+    checked = {c.id: _measure(scorer, c, seed, integ.bench, integ.dut) for c in criteria if c.id.startswith(PREFIX)}
+    broken = [f"its output failed {k}" for k, v in checked.items() if v.verdict is Verdict.FAIL]
+    for c in criteria:
         compared = c.relative_to is not None
-        if compared and variant not in (c.variant, c.relative_to):
-            continue
-        if not compared and not _applies(c, variant):
-            continue
-        rv = _measure(scorer, c, seed, integ.bench, integ.dut)
+        rv = checked[c.id] if c.id in checked else _measure(scorer, c, seed, integ.bench, integ.dut + broken)
         if compared:
             result.raw[c.id] = rv
         else:
@@ -168,6 +181,7 @@ def judge_case(case: TestCase, runs: list[RunResult], errors: list[str] | None =
     """Combine the runs of a case into per-criterion and case verdicts."""
     out = CaseResult(case.id, case.title, case.file_name, case.requirements, Verdict.PASS, runs=runs, case=case)
     out.errors = list(errors or [])
+    out.waived = waivers(case.scoring)
     variants = case.variants()
     for c in case.criteria:
         targets = [c.variant] if c.variant is not None else variants

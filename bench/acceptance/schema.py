@@ -27,6 +27,7 @@ from bench.acceptance.case import (
 )
 from bench.acceptance.criteria_schema import criteria as parse_criteria
 from bench.acceptance.criteria_schema import scoring_settings
+from bench.acceptance.integrity_criteria import with_integrity
 from bench.acceptance.tomlcheck import Table, type_name
 from bench.errors import ConfigError
 from bench.faults.schedule import FaultSchedule, parse_schedule
@@ -102,12 +103,13 @@ def build_case(
     criteria = parse_criteria(top.tables("criterion"), scoring, tuple(requirements), dut, run)
     if not criteria:
         raise ConfigError("expected at least one [[criterion]] table", file=file, key="criterion")
+    criteria, case_requirements = with_integrity(criteria, scoring, tuple(requirements), file)
     top.raw("criterion")
     top.finish()
     return TestCase(
         id=str(case_id),
         title=str(title),
-        requirements=tuple(requirements),
+        requirements=case_requirements,
         file=file,
         text=text,
         path=path,

@@ -4,7 +4,8 @@
 ICD frames would deliver them: times of validity in whole microseconds, latitude,
 longitude and angles in 1e-7 deg, height in mm, velocity in 0.1 mm/s, sigmas in 0.01 m,
 1 mm/s and 0.01 arcmin. Errors are applied as the scoring measures them: position as an
-ENU offset at the truth (through ECEF), velocity ENU, heading/pitch/roll added.
+ENU offset at the truth (through ECEF), velocity ENU, heading/pitch/roll added. Output
+defects and corruptions (:mod:`bench.acceptance.corrupt`) are applied last.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from bench.acceptance.case import Command
+from bench.acceptance.corrupt import CORRUPTIONS, corrupt_output
 from bench.acceptance.synthetic_spec import ErrorSignature, SyntheticDut
 from bench.faults.schedule import FaultWindow
 from bench.nav import earth
@@ -244,6 +246,12 @@ def dut_output(
                 bad.append({"t_ns": int(tb), "link": d.link, "kind": d.frame_kind, "detail": "synthetic"})
     nav["rx_ns"] = rx
     qual["rx_ns"] = rx
-    nav, qual, rx = nav[keep], qual[keep], rx[keep]
-    order = np.argsort(rx, kind="stable")
-    return DutOutput(nav[order], qual[order], bad, switches)
+    nav, qual = nav[keep], qual[keep]
+    for d in spec.outputs:
+        if d.kind in CORRUPTIONS:
+            nav, q, more = corrupt_output(nav, qual, d.kind, d.start_ns or 0, d.end_ns, d.amount_ns)
+            qual = q if q is not None else qual
+            bad += more
+    nav = nav[np.argsort(nav["rx_ns"], kind="stable")]
+    qual = qual[np.argsort(qual["rx_ns"], kind="stable")]
+    return DutOutput(nav, qual, sorted(bad, key=lambda b: b["t_ns"]), switches)

@@ -22,7 +22,10 @@ so scoring must recover exactly what was put in. Keys (see ``docs/test_cases.md`
 * ``[[output]]`` defects: ``drop`` (``start``-``end``), ``drop_every`` (``every`` n-th
   epoch), ``late`` (``latency`` in ``start``-``end``), ``jitter`` (uniform +-``amount``
   on the time of validity, seeded), ``invalid`` (``start``-``end``), ``bad_frames``
-  (``every`` seconds on ``link``, of ``frame_kind``);
+  (``every`` seconds on ``link``, of ``frame_kind``), and the corruptions of
+  :mod:`bench.acceptance.corrupt` from ``start`` to ``end`` (``bad_crc``,
+  ``out_of_range``, ``counter_stuck``, ``counter_skip``, ``time_frozen``,
+  ``time_backwards``, ``time_jump`` by ``amount``, ``no_quality``);
 * ``bench_status``: a test hook ending the recording with another ``run_end`` status.
 """
 
@@ -33,6 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bench.acceptance.corrupt import CORRUPTIONS
 from bench.acceptance.tomlcheck import Table
 from bench.scenario.motion import GNSS_FLAGS
 from bench.scoring.faults import target_bit
@@ -62,7 +66,7 @@ ERROR_KINDS = (
     "fault_drift",
     "segment_drift",
 )
-OUTPUT_KINDS = ("drop", "drop_every", "late", "jitter", "invalid", "bad_frames")
+OUTPUT_KINDS = ("drop", "drop_every", "late", "jitter", "invalid", "bad_frames", *CORRUPTIONS)
 END_STATUSES = ("complete", "error", "interrupted", "dut_error", "timing_budget", "link_lost")
 
 
@@ -219,6 +223,8 @@ def _output(t: Table) -> OutputDefect:
         frame_kind=str(t.str("frame_kind", "crc")),
     )
     t.finish()
+    if kind == "time_jump" and d.amount_ns <= 0:
+        raise t.error("amount", "missing field; time_jump needs a positive 'amount' such as '1e6 s'")
     if kind in ("drop_every", "bad_frames") and d.every <= 0:
         raise t.error("every", f"missing field; {kind} needs a positive 'every'")
     if kind == "drop_every" and d.every != int(d.every):

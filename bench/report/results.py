@@ -4,6 +4,7 @@ Layout (``results.json`` of ``bench accept``; ``bench score --json``)::
 
     {"schema": "bench.results.v1", "verdict": "PASS", "counts": {...},
      "cases": [{"id", "title", "file", "requirements", "verdict", "errors": [...],
+                "integrity_waived": [{"check", "criterion", "reason"}],
                 "criteria": [{"id", "requirements", "metric", "window", "limit",
                               "unit", "value", "margin", "verdict", "reason",
                               "paper", "variant", "relative_to", "monte_carlo",
@@ -112,6 +113,7 @@ def case_json(cr: CaseResult) -> dict[str, Any]:
             "requirements": list(cr.requirements),
             "verdict": str(cr.verdict),
             "errors": cr.errors,
+            "integrity_waived": cr.waived,
             "dut": None if cr.case is None else {"kind": cr.case.dut.kind, "name": cr.case.dut.name},
             "criteria": [criterion_json(c) for c in cr.criteria],
             "runs": [run_json(r) for r in cr.runs],

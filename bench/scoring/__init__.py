@@ -5,5 +5,6 @@ else: no links, sensors, plant or clock. The truth is interpolated to the DUT's 
 validity (:mod:`~bench.scoring.align`), windows are resolved against the run
 (:mod:`~bench.scoring.windows`) and the metric families compute their values:
 accuracy, fault detection and isolation, frame-switch smoothness, consistency and
-output quality (catalogue in :mod:`~bench.scoring.metrics`). See ``docs/scoring.md``.
+output quality and integrity (:mod:`~bench.scoring.epochs`; catalogue in
+:mod:`~bench.scoring.metrics`). See ``docs/scoring.md``.
 """

@@ -8,7 +8,8 @@ criterion's limits), a display unit and the options a criterion may pass to it:
   ``layer``);
 * ``frameswitch.<aggregate>`` -- :mod:`bench.scoring.frameswitch` (option ``to``);
 * ``consistency.<quantity>.<stat>`` -- :mod:`bench.scoring.consistency`;
-* ``output.<name>`` -- :mod:`bench.scoring.output`.
+* ``output.<name>`` -- :mod:`bench.scoring.output` (the integrity measures in
+  :mod:`bench.scoring.epochs`).
 
 Values are SI floats (counts as floats, fractions as fractions); ``inf`` is a real
 measurement (a fault never detected, an error that never settles).
@@ -28,6 +29,7 @@ from bench.scoring.accuracy import QUANTITIES, QUANTITY_STATS, accuracy_value
 from bench.scoring.align import NavErrors, cumulative_distance, nav_errors
 from bench.scoring.consistency import CONSISTENCY_QUANTITIES, consistency_value
 from bench.scoring.data import NoDataError, RunData
+from bench.scoring.epochs import OutputIntegrity
 from bench.scoring.faults import FLAGS, FaultAnalysis, FaultSettings, analyse_faults
 from bench.scoring.frameswitch import FRAMES, SWITCH_QUANTITIES, SwitchAnalysis, SwitchSettings, analyse_switches
 from bench.scoring.integrity import Integrity, check_integrity
@@ -139,6 +141,7 @@ class ScoringSettings:
     confidence: float = 0.95
     nominal_period_ns: int = 10_000_000
     budget_ns: int | None = None
+    output_integrity: OutputIntegrity = field(default_factory=OutputIntegrity)
 
 
 @dataclass
@@ -212,7 +215,13 @@ class Scorer:
             return MetricValue(v, det)
         if ms.family == "output":
             v, det = output_value(
-                parts[1], self.run.nav, self.run.quality, self.run.bad_frames, window, self.settings.nominal_period_ns
+                parts[1],
+                self.run.nav,
+                self.run.quality,
+                self.run.bad_frames,
+                window,
+                self.settings.nominal_period_ns,
+                self.settings.output_integrity.bounds,
             )
             return MetricValue(v, det)
         if ms.family == "faults":

@@ -25,7 +25,7 @@ def _error(make_case, text: str) -> ConfigError:
 
 def test_good_case_loads(make_case):
     case = load_case(make_case(base_case()))
-    assert case.id == "T1" and case.requirements == ("R1", "R2")
+    assert case.id == "T1" and case.requirements == ("R1", "R2", "BENCH-INTEGRITY")
     c = case.criteria[0]
     assert c.metric == "accuracy.horizontal.rms" and c.limit.comparator == "at_most"
     assert c.limit.high == 6.0 and c.marginal == 0.5 and c.paper == "5 m" and c.requirements == ("R1",)

@@ -200,7 +200,9 @@ def test_late_and_missing_epochs_and_bad_frames(scored):
     assert m(s, "output.latency_p95") == pytest.approx(0.005)
     assert m(s, "output.missing_epochs") == 100
     assert m(s, "output.counter_gaps") == 100
-    assert m(s, "output.rate") == pytest.approx(100.0)
+    assert m(s, "output.counter_faults") == 0  # the counter steps with the time of validity
+    assert m(s, "output.rate") == pytest.approx(19_900 / 200)  # delivered over the window, not 1 / median
+    assert m(s, "output.median_rate") == pytest.approx(100.0)
     assert m(s, "output.bad_frames") == 4  # at 0, 50, 100, 150 s
 
 
@@ -224,7 +226,10 @@ def test_recording_is_laid_out_as_the_run_engine_writes(scored):
     assert np.all(run.nav["t_ns"] % 1000 == 0)  # microseconds, as on the wire
     assert np.all(np.diff(run.nav["rx_ns"]) >= 0)  # arrival order
     _, result = score_recording(rec)
-    assert result.verdict is Verdict.PASS
+    # the output defects the case injects are judged by the default integrity criteria
+    failed = {k for k, v in result.values.items() if v.verdict is Verdict.FAIL}
+    assert failed == {"INTEGRITY-missing", "INTEGRITY-gap", "INTEGRITY-order", "INTEGRITY-bad-frames"}
+    assert result.verdict is Verdict.FAIL
 
 
 def test_same_seed_same_recording_payload(tmp_path_factory, scored):
