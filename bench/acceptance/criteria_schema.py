@@ -12,7 +12,7 @@ from typing import Any
 
 from bench.acceptance.case import ClockSpec, DutSpec, RunSpec
 from bench.acceptance.criteria import AGGREGATES, COMPARATORS, Criterion, Limit, MonteCarlo
-from bench.acceptance.tomlcheck import Table, type_name
+from bench.config.table import Table, type_name
 from bench.scenario.motion import GNSS_FLAGS, SEGMENT_KINDS
 from bench.scoring.faults import FLAGS, FaultSettings, target_bit
 from bench.scoring.frameswitch import SwitchSettings

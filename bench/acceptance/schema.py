@@ -1,6 +1,6 @@
 """The test-case schema: section by section checks of a parsed case file.
 
-Each ``_section`` function reads one table with :class:`~bench.acceptance.tomlcheck.Table`
+Each ``_section`` function reads one table with :class:`~bench.config.table.Table`
 (types, units, choices, unknown keys) and returns the dataclass of
 :mod:`bench.acceptance.case`. ``docs/test_cases.md`` documents every key.
 """
@@ -27,7 +27,7 @@ from bench.acceptance.case import (
 )
 from bench.acceptance.criteria_schema import criteria as parse_criteria
 from bench.acceptance.criteria_schema import scoring_settings
-from bench.acceptance.tomlcheck import Table, type_name
+from bench.config.table import Table, type_name
 from bench.errors import ConfigError
 from bench.faults.schedule import FaultSchedule, parse_schedule
 

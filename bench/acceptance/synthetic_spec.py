@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bench.acceptance.tomlcheck import Table
+from bench.config.table import Table
 from bench.scenario.motion import GNSS_FLAGS
 from bench.scoring.faults import target_bit
 from bench.units import vector

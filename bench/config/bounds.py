@@ -1,0 +1,139 @@
+"""Physical bounds of configuration values, one table for the whole bench.
+
+Every value a user writes passes :func:`check` with the kind of quantity it is where it
+enters the bench (a test case, a scenario, a parameter set, a fault schedule), so a run
+stays finite in memory and time whatever the files say. The bounds are far beyond any
+real use; a value outside them is a typing slip (``"1e300 s"``, ``monte_carlo =
+1000000000``, ``every = "1 ns"``), refused with the file, the key, the value and the bound::
+
+    case.toml: scenario.duration: expected a duration <= 2.592e+06 s (30 days), found '1e300 s'
+
+``docs/test_cases.md`` lists the table for users.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from bench.errors import ConfigError
+from bench.units import quantity
+
+__all__ = ["Bound", "BOUNDS", "MAX_DURATION_S", "bound", "check", "bounded_quantity", "markdown_table"]
+
+#: The longest run, scenario or fault window the bench takes: 30 days.
+MAX_DURATION_S = 30 * 86_400.0
+
+
+@dataclass(frozen=True)
+class Bound:
+    """The allowed range of one kind of value (SI, or a plain count).
+
+    ``low``/``high`` are inclusive unless ``low_open``; ``zero`` also allows exactly 0
+    below ``low`` (a period of 0 means "once"). ``unit`` and ``scale`` show the bounds in
+    messages (``value_SI / scale`` in ``unit``); ``note`` says it in words.
+    """
+
+    what: str
+    low: float | None
+    high: float | None
+    unit: str = ""
+    low_open: bool = False
+    zero: bool = False
+    scale: float = 1.0
+    note: str = ""
+
+    def _show(self, x: float) -> str:
+        text = f"{x / self.scale:.6g}"
+        return f"{text} {self.unit}" if self.unit else text
+
+    def text(self) -> str:
+        """The range in words, e.g. ``0 or 1 ms .. 2.592e+06 ms (0: once)``."""
+        lo = None if self.low is None else self._show(self.low)
+        hi = None if self.high is None else self._show(self.high)
+        if lo is not None and hi is not None:
+            rng = f"> {lo} and <= {hi}" if self.low_open else f"{lo} .. {hi}"
+        elif lo is not None:
+            rng = f"{'>' if self.low_open else '>='} {lo}"
+        else:
+            rng = f"<= {hi}"
+        return ("0 or " if self.zero else "") + rng + (f" ({self.note})" if self.note else "")
+
+    def violation(self, x: float) -> str | None:
+        """What is wrong with ``x`` (``expected ...``), or None when it is inside."""
+        if isinstance(x, float) and not math.isfinite(x):
+            return f"expected {self.what} as a finite number"
+        if self.zero and x == 0:
+            return None
+        if self.low is not None and (x < self.low or (self.low_open and x == self.low)):
+            op = ">" if self.low_open else ">="
+            zero = "0 or " if self.zero else ""
+            return f"expected {self.what} of {zero}{op} {self._show(self.low)}"
+        if self.high is not None and x > self.high:
+            note = f" ({self.note})" if self.note else ""
+            return f"expected {self.what} <= {self._show(self.high)}{note}"
+        return None
+
+
+_MS = 1e-3
+_MiB = float(1 << 20)
+
+#: kind -> bound. Kinds: durations and times of a run (s), rates (Hz), counts, sizes.
+BOUNDS: dict[str, Bound] = {
+    "duration": Bound("a duration", 0.0, MAX_DURATION_S, "s", low_open=True, note="30 days"),
+    "time": Bound("a time", 0.0, MAX_DURATION_S, "s", note="30 days"),
+    "offset": Bound("a time offset", -MAX_DURATION_S, MAX_DURATION_S, "s", note="30 days"),
+    "timeout": Bound("a timeout", 0.0, 3600.0, "s", low_open=True, note="1 hour"),
+    "period": Bound("a period", _MS, MAX_DURATION_S, "ms", zero=True, scale=_MS, note="0: once"),
+    "rate": Bound("a rate", 0.0, 10_000.0, "Hz", low_open=True),
+    "imu_rate": Bound("an IMU rate", 1.0, 1000.0, "Hz", note="the ICD's IMU frame rates"),
+    "runs": Bound("a number of runs", 1, 10_000),
+    "seed": Bound("a seed", 0, 2**63 - 1),
+    "repeat": Bound("a repeat count", 1, 100_000),
+    "segments": Bound("a number of segments", 1, 100_000, note="after repeats"),
+    "events": Bound("a number of fault events per window", 0, 1_000_000),
+    "burst": Bound("a burst length", 1, 65_536, "bytes"),
+    "copies": Bound("a number of copies", 1, 100),
+    "count": Bound("a count", 0, 1_000_000_000),
+    "baud": Bound("a baud rate", 1, 10_000_000, "baud"),
+    "speed_factor": Bound("a speed factor", 0.0, 1000.0, low_open=True),
+    "text_file": Bound("a text file size", 0, 64 * _MiB, "MiB", scale=_MiB),
+    "log_file": Bound("a log file size", 0, 1024 * _MiB, "MiB", scale=_MiB),
+}
+
+
+def bound(kind: str) -> Bound:
+    """The bound of ``kind`` (KeyError names the known kinds)."""
+    try:
+        return BOUNDS[kind]
+    except KeyError:
+        raise KeyError(f"no bound {kind!r}; known: {', '.join(BOUNDS)}") from None
+
+
+def check(kind: str, value: float, *, file: str | None = None, key: str | None = None, shown: Any = None) -> float:
+    """Return ``value`` if it is inside the bound of ``kind``, else raise ConfigError.
+
+    ``shown`` is the value as the user wrote it (``'1e300 s'``), for the message.
+    """
+    why = bound(kind).violation(value)  # ints compare exactly, however large
+    if why is not None:
+        found = shown if shown is not None else value
+        raise ConfigError(f"{why}, found {found!r}", file=file, key=key)
+    return value
+
+
+def bounded_quantity(
+    value: Any, dimension: str, unit: str, kind: str, *, file: str | None = None, key: str | None = None
+) -> float:
+    """:func:`bench.units.quantity` then :func:`check` (for loaders that read raw tables)."""
+    return check(kind, quantity(value, dimension, unit, file=file, key=key), file=file, key=key, shown=value)
+
+
+def markdown_table(kinds: tuple[str, ...] | None = None) -> str:
+    """The bounds as a Markdown table (for the docs)."""
+    rows = ["| kind | what | allowed |", "|---|---|---|"]
+    for k in kinds or tuple(BOUNDS):
+        b = BOUNDS[k]
+        rows.append(f"| `{k}` | {b.what} | {b.text()} |")
+    return "\n".join(rows)
