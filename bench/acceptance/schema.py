@@ -27,7 +27,8 @@ from bench.acceptance.case import (
 )
 from bench.acceptance.criteria_schema import criteria as parse_criteria
 from bench.acceptance.criteria_schema import scoring_settings
-from bench.config.table import Table, type_name
+from bench.config.files import read_toml, regular_file
+from bench.config.table import Table, check_keys, type_name
 from bench.errors import ConfigError
 from bench.faults.schedule import FaultSchedule, parse_schedule
 
@@ -71,9 +72,7 @@ def build_case(
 ) -> TestCase:
     """Check every section of a parsed case and assemble the :class:`TestCase`."""
     top = Table(doc, file)
-    for k in doc:
-        if k not in TOP_KEYS:
-            raise ConfigError(f"unknown table {k!r}; expected one of: {', '.join(TOP_KEYS)}", file=file, key=k)
+    check_keys(doc, TOP_KEYS, file=file, noun="table")
     c = top.table("case", required=True)
     assert c is not None
     case_id = c.str("id", required=True, pattern=_ID, expect="an identifier such as 'S000-AP'")
@@ -134,7 +133,7 @@ def _scenario(t: Table, base: Path | None, check_files: bool) -> ScenarioRef:
     fmu = t.str("fmu")
     driver = t.str("driver")
     vehicle = t.str("vehicle")
-    duration = t.quantity("duration", "time", "s", positive=True)
+    duration = t.quantity("duration", "time", "s", positive=True, bound="duration")
     t.finish()
     if (script is None) == (fmu is None):
         raise t.error("script", "expected either 'script' (a motion script or track) or 'fmu' with 'driver'")
@@ -145,18 +144,21 @@ def _scenario(t: Table, base: Path | None, check_files: bool) -> ScenarioRef:
     ref = ScenarioRef(script, fmu, driver, vehicle, duration, base)
     if check_files:
         if script is not None:
+            from bench.scenario.loader import find_scenario, load_scenario
+
             p = ref.resolve(script)
             if p is None or not p.exists():
-                from bench.scenario.loader import find_scenario
-
                 try:
-                    find_scenario(script)
+                    p = find_scenario(script)
                 except ConfigError as exc:
                     raise t.error("script", f"no scenario file {script!r} next to the case, and {exc}") from None
+            load_scenario(p)  # a regular file of bounded size, its values checked up front
         for name, value in (("driver", driver), ("vehicle", vehicle)):
             p = ref.resolve(value)
             if p is not None and not p.exists():
                 raise t.error(name, f"file not found: {p}")
+            if p is not None:
+                regular_file(p, what=f"{name} file")
     return ref
 
 
@@ -165,7 +167,7 @@ def _check_imu(params: Mapping[str, Any], file: str, key: str) -> None:
 
     t = Table(params, file, key)
     grade = t.str("grade")
-    t.quantity("rate", "frequency", "Hz", positive=True)
+    t.quantity("rate", "frequency", "Hz", positive=True, bound="imu_rate")
     t.finish()
     if grade is not None:
         try:
@@ -225,8 +227,6 @@ def _load_fault_kinds() -> None:
 
 def _fault_files(top: Table, names: list[str], inline: FaultSchedule, base: Path | None) -> FaultSchedule:
     """Inline windows, then those of each fault file (``[[fault]]`` tables, numbered on)."""
-    from bench.scenario.loader import read_toml
-
     windows = list(inline)
     for i, name in enumerate(names):
         p = Path(name)
@@ -234,10 +234,8 @@ def _fault_files(top: Table, names: list[str], inline: FaultSchedule, base: Path
             p = base / p
         if not p.exists():
             raise top.error(f"fault_files[{i}]", f"file not found: {p}")
-        doc = read_toml(p)
-        for k in doc:
-            if k not in ("fault", "description", "reference"):
-                raise ConfigError(f"unknown key {k!r}; expected [[fault]] tables", file=str(p), key=k)
+        doc = read_toml(p, what="fault file")
+        check_keys(doc, ("fault", "description", "reference"), file=str(p))
         windows += list(parse_schedule(doc.get("fault"), file=str(p), first_id=len(windows)))
     return FaultSchedule(windows)
 
@@ -287,9 +285,9 @@ def _dut(t: Table, base: Path | None, check_files: bool) -> DutSpec:
         config = dict(raw_config)
     else:
         raise t.error("config", f"expected a table or a file name, found {raw_config!r} ({type_name(raw_config)})")
-    rate = t.quantity("output_rate", "frequency", "Hz", 100.0, positive=True)
-    startup = t.quantity("startup_timeout", "time", "s", 5.0, positive=True)
-    shutdown = t.quantity("shutdown_timeout", "time", "s", 5.0, positive=True)
+    rate = t.quantity("output_rate", "frequency", "Hz", 100.0, positive=True, bound="rate")
+    startup = t.quantity("startup_timeout", "time", "s", 5.0, positive=True, bound="timeout")
+    shutdown = t.quantity("shutdown_timeout", "time", "s", 5.0, positive=True, bound="timeout")
     links = _links(t.table("links"))
     description = t.str("description", "")
     synthetic_raw = t.raw("synthetic", None)
@@ -358,13 +356,14 @@ def _clock(t: Table | None) -> ClockSpec:
         return ClockSpec()
     mode = t.str("mode", "lockstep", choices=CLOCK_MODES)
     step = t.time_ns("step", "10 ms", positive=True)
-    timeout = t.time_ns("timeout", "5 s", positive=True)
-    budget = t.time_ns("budget", positive=True)
-    budget_p99 = t.time_ns("budget_p99", positive=True)
+    timeout = t.time_ns("timeout", "5 s", positive=True, bound="timeout")
+    budget = t.time_ns("budget", positive=True, bound="timeout")
+    budget_p99 = t.time_ns("budget_p99", positive=True, bound="timeout")
     speed = t.number("speed", 1.0)
     t.finish()
     if speed is None or speed <= 0:
         raise t.error("speed", f"expected a positive number (2: twice real time), found {speed!r}")
+    t.bounded("speed", "speed_factor", speed, speed)
     return ClockSpec(str(mode), int(step), int(timeout), budget, budget_p99, float(speed))  # type: ignore[arg-type]
 
 
@@ -372,8 +371,8 @@ def _run(t: Table | None) -> RunSpec:
     if t is None:
         return RunSpec()
     seeds_raw = t.raw("seeds")
-    mc = t.int("monte_carlo", minimum=1)
-    first = t.int("first_seed", 1, minimum=0)
+    mc = t.int("monte_carlo", minimum=1, bound="runs")
+    first = t.int("first_seed", 1, minimum=0, bound="seed")
     truth_rate = t.quantity("truth_rate", "frequency", "Hz", 100.0, positive=True)
     t.finish()
     if seeds_raw is not None and mc is not None:
@@ -385,10 +384,14 @@ def _run(t: Table | None) -> RunSpec:
             or not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in seeds_raw)
         ):
             raise t.error("seeds", f"expected a non-empty array of non-negative integers, found {seeds_raw!r}")
+        t.bounded("seeds", "runs", len(seeds_raw), f"{len(seeds_raw)} seeds")
+        for s in seeds_raw:
+            t.bounded("seeds", "seed", s, s)
         if len(set(seeds_raw)) != len(seeds_raw):
             raise t.error("seeds", f"expected distinct seeds, found {seeds_raw!r}")
         seeds = tuple(seeds_raw)
     elif mc is not None:
+        t.bounded("first_seed", "seed", int(first) + mc - 1, f"{first} (with monte_carlo = {mc})")  # type: ignore[operator]
         seeds = tuple(range(int(first), int(first) + mc))  # type: ignore[arg-type]
     else:
         seeds = (int(first),)  # type: ignore[arg-type]
