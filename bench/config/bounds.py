@@ -45,8 +45,11 @@ class Bound:
     note: str = ""
 
     def _show(self, x: float) -> str:
-        text = f"{x / self.scale:.6g}"
-        return f"{text} {self.unit}" if self.unit else text
+        v, unit = x / self.scale, self.unit
+        if unit == "s" and 0 < abs(v) < 1:
+            v, unit = v * 1e3, "ms"
+        text = f"{v:.0f}" if float(v).is_integer() and abs(v) < 1e15 else f"{v:.6g}"
+        return f"{text} {unit}" if unit else text
 
     def text(self) -> str:
         """The range in words, e.g. ``0 or 1 ms .. 2.592e+06 ms (0: once)``."""
@@ -68,8 +71,8 @@ class Bound:
             return None
         if self.low is not None and (x < self.low or (self.low_open and x == self.low)):
             op = ">" if self.low_open else ">="
-            zero = "0 or " if self.zero else ""
-            return f"expected {self.what} of {zero}{op} {self._show(self.low)}"
+            zero = " of 0 or" if self.zero else ""
+            return f"expected {self.what}{zero} {op} {self._show(self.low)}"
         if self.high is not None and x > self.high:
             note = f" ({self.note})" if self.note else ""
             return f"expected {self.what} <= {self._show(self.high)}{note}"
@@ -85,7 +88,7 @@ BOUNDS: dict[str, Bound] = {
     "time": Bound("a time", 0.0, MAX_DURATION_S, "s", note="30 days"),
     "offset": Bound("a time offset", -MAX_DURATION_S, MAX_DURATION_S, "s", note="30 days"),
     "timeout": Bound("a timeout", 0.0, 3600.0, "s", low_open=True, note="1 hour"),
-    "period": Bound("a period", _MS, MAX_DURATION_S, "ms", zero=True, scale=_MS, note="0: once"),
+    "period": Bound("a period", _MS, MAX_DURATION_S, "s", zero=True, note="30 days"),
     "rate": Bound("a rate", 0.0, 10_000.0, "Hz", low_open=True),
     "imu_rate": Bound("an IMU rate", 1.0, 1000.0, "Hz", note="the ICD's IMU frame rates"),
     "runs": Bound("a number of runs", 1, 10_000),
