@@ -14,12 +14,9 @@ from pathlib import Path
 from typing import Any
 
 from bench.acceptance.case import (
-    CLOCK_MODES,
     DUT_KINDS,
-    ClockSpec,
     Command,
     DutSpec,
-    RunSpec,
     ScenarioRef,
     SensorSet,
     TestCase,
@@ -27,6 +24,7 @@ from bench.acceptance.case import (
 )
 from bench.acceptance.criteria_schema import criteria as parse_criteria
 from bench.acceptance.criteria_schema import scoring_settings
+from bench.acceptance.run_schema import clock_spec, run_spec
 from bench.config.files import read_toml, regular_file
 from bench.config.table import Table, check_keys, type_name
 from bench.errors import ConfigError
@@ -95,8 +93,8 @@ def build_case(
         faults = _fault_files(top, fault_files, faults, base)
     commands = tuple(_command(t) for t in top.tables("command"))
     dut = _dut(top.table("dut", required=True), base, check_files)  # type: ignore[arg-type]
-    clock = _clock(top.table("clock"))
-    run = _run(top.table("run"))
+    clock = clock_spec(top.table("clock"))
+    run = run_spec(top.table("run"))
     scoring = scoring_settings(top.table("scoring"), dut, clock)
     criteria = parse_criteria(top.tables("criterion"), scoring, tuple(requirements), dut, run)
     if not criteria:
@@ -279,8 +277,11 @@ def _dut(t: Table, base: Path | None, check_files: bool) -> DutSpec:
     config_file = None
     if isinstance(raw_config, str):
         config_file = raw_config
-        if check_files and base is not None and not (base / raw_config).exists() and not Path(raw_config).exists():
-            raise t.error("config", f"file not found: {raw_config}")
+        if check_files and base is not None:
+            found = [p for p in (base / raw_config, Path(raw_config)) if p.exists()]
+            if not found:
+                raise t.error("config", f"file not found: {raw_config}")
+            regular_file(found[0], what="DUT configuration file")
     elif isinstance(raw_config, Mapping):
         config = dict(raw_config)
     else:
@@ -349,52 +350,3 @@ def _dut(t: Table, base: Path | None, check_files: bool) -> DutSpec:
         synthetic=synthetic,
         description=str(description),
     )
-
-
-def _clock(t: Table | None) -> ClockSpec:
-    if t is None:
-        return ClockSpec()
-    mode = t.str("mode", "lockstep", choices=CLOCK_MODES)
-    step = t.time_ns("step", "10 ms", positive=True)
-    timeout = t.time_ns("timeout", "5 s", positive=True, bound="timeout")
-    budget = t.time_ns("budget", positive=True, bound="timeout")
-    budget_p99 = t.time_ns("budget_p99", positive=True, bound="timeout")
-    speed = t.number("speed", 1.0)
-    t.finish()
-    if speed is None or speed <= 0:
-        raise t.error("speed", f"expected a positive number (2: twice real time), found {speed!r}")
-    t.bounded("speed", "speed_factor", speed, speed)
-    return ClockSpec(str(mode), int(step), int(timeout), budget, budget_p99, float(speed))  # type: ignore[arg-type]
-
-
-def _run(t: Table | None) -> RunSpec:
-    if t is None:
-        return RunSpec()
-    seeds_raw = t.raw("seeds")
-    mc = t.int("monte_carlo", minimum=1, bound="runs")
-    first = t.int("first_seed", 1, minimum=0, bound="seed")
-    truth_rate = t.quantity("truth_rate", "frequency", "Hz", 100.0, positive=True)
-    t.finish()
-    if seeds_raw is not None and mc is not None:
-        raise t.error("monte_carlo", "give either 'seeds' or 'monte_carlo', not both")
-    if seeds_raw is not None:
-        if (
-            not isinstance(seeds_raw, list)
-            or not seeds_raw
-            or not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in seeds_raw)
-        ):
-            raise t.error("seeds", f"expected a non-empty array of non-negative integers, found {seeds_raw!r}")
-        t.bounded("seeds", "runs", len(seeds_raw), f"{len(seeds_raw)} seeds")
-        for s in seeds_raw:
-            t.bounded("seeds", "seed", s, s)
-        if len(set(seeds_raw)) != len(seeds_raw):
-            raise t.error("seeds", f"expected distinct seeds, found {seeds_raw!r}")
-        seeds = tuple(seeds_raw)
-    elif mc is not None:
-        t.bounded("first_seed", "seed", int(first) + mc - 1, f"{first} (with monte_carlo = {mc})")  # type: ignore[operator]
-        seeds = tuple(range(int(first), int(first) + mc))  # type: ignore[arg-type]
-    else:
-        seeds = (int(first),)  # type: ignore[arg-type]
-    if not 1.0 <= truth_rate <= 1000.0:  # type: ignore[operator]
-        raise t.error("truth_rate", f"expected 1 .. 1000 Hz, found {truth_rate:g} Hz")
-    return RunSpec(seeds, float(truth_rate))  # type: ignore[arg-type]
