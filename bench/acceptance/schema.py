@@ -150,7 +150,10 @@ def _scenario(t: Table, base: Path | None, check_files: bool) -> ScenarioRef:
                     p = find_scenario(script)
                 except ConfigError as exc:
                     raise t.error("script", f"no scenario file {script!r} next to the case, and {exc}") from None
-            load_scenario(p)  # a regular file of bounded size, its values checked up front
+            try:
+                load_scenario(p)  # a regular file of bounded size, its values checked up front
+            except ConfigError as exc:
+                raise t.error("script", str(exc)) from None
         for name, value in (("driver", driver), ("vehicle", vehicle)):
             p = ref.resolve(value)
             if p is not None and not p.exists():
@@ -232,7 +235,10 @@ def _fault_files(top: Table, names: list[str], inline: FaultSchedule, base: Path
             p = base / p
         if not p.exists():
             raise top.error(f"fault_files[{i}]", f"file not found: {p}")
-        doc = read_toml(p, what="fault file")
+        try:
+            doc = read_toml(p, what="fault file")
+        except ConfigError as exc:
+            raise top.error(f"fault_files[{i}]", str(exc)) from None
         check_keys(doc, ("fault", "description", "reference"), file=str(p))
         windows += list(parse_schedule(doc.get("fault"), file=str(p), first_id=len(windows)))
     return FaultSchedule(windows)

@@ -137,8 +137,8 @@ class Table:
         maximum: int | None = None,
         bound: str | None = None,
     ) -> int | None:
-        expect = "an integer" + (f" >= {minimum}" if minimum is not None else "")
-        expect += (" and" if minimum is not None else "") + (f" <= {maximum}" if maximum is not None else "")
+        bounds = [f">= {minimum}" if minimum is not None else "", f"<= {maximum}" if maximum is not None else ""]
+        expect = " ".join(["an integer", " and ".join(b for b in bounds if b)]).strip()
         v = self.raw(name, default, required=required, expect=expect)
         if v is None:
             return None
