@@ -32,7 +32,8 @@ class Bound:
 
     ``low``/``high`` are inclusive unless ``low_open``; ``zero`` also allows exactly 0
     below ``low`` (a period of 0 means "once"). ``unit`` and ``scale`` show the bounds in
-    messages (``value_SI / scale`` in ``unit``); ``note`` says it in words.
+    messages (``value_SI / scale`` in ``unit``); ``note`` says it in words; ``where``
+    lists the keys it holds (for the docs).
     """
 
     what: str
@@ -43,6 +44,7 @@ class Bound:
     zero: bool = False
     scale: float = 1.0
     note: str = ""
+    where: str = ""
 
     def _show(self, x: float) -> str:
         v, unit = x / self.scale, self.unit
@@ -84,25 +86,36 @@ _MiB = float(1 << 20)
 
 #: kind -> bound. Kinds: durations and times of a run (s), rates (Hz), counts, sizes.
 BOUNDS: dict[str, Bound] = {
-    "duration": Bound("a duration", 0.0, MAX_DURATION_S, "s", low_open=True, note="30 days"),
-    "time": Bound("a time", 0.0, MAX_DURATION_S, "s", note="30 days"),
-    "offset": Bound("a time offset", -MAX_DURATION_S, MAX_DURATION_S, "s", note="30 days"),
-    "timeout": Bound("a timeout", 0.0, 3600.0, "s", low_open=True, note="1 hour"),
-    "period": Bound("a period", _MS, MAX_DURATION_S, "s", zero=True, note="30 days"),
-    "rate": Bound("a rate", 0.0, 10_000.0, "Hz", low_open=True),
-    "imu_rate": Bound("an IMU rate", 1.0, 1000.0, "Hz", note="the ICD's IMU frame rates"),
-    "runs": Bound("a number of runs", 1, 10_000),
-    "seed": Bound("a seed", 0, 2**63 - 1),
-    "repeat": Bound("a repeat count", 1, 100_000),
-    "segments": Bound("a number of segments", 1, 100_000, note="after repeats"),
-    "events": Bound("a number of fault events per window", 0, 1_000_000),
-    "burst": Bound("a burst length", 1, 65_536, "bytes"),
-    "copies": Bound("a number of copies", 1, 100),
-    "count": Bound("a count", 0, 1_000_000_000),
-    "baud": Bound("a baud rate", 1, 10_000_000, "baud"),
-    "speed_factor": Bound("a speed factor", 0.0, 1000.0, low_open=True),
-    "text_file": Bound("a text file size", 0, 64 * _MiB, "MiB", scale=_MiB),
-    "log_file": Bound("a log file size", 0, 1024 * _MiB, "MiB", scale=_MiB),
+    "duration": Bound("a duration", 0.0, MAX_DURATION_S, "s", low_open=True, note="30 days",
+                      where="`[scenario] duration`, segment durations and a script's total, `[plant] duration`, "
+                      "fault `duration`, `[clock] step`"),
+    "time": Bound("a time", 0.0, MAX_DURATION_S, "s", note="30 days",
+                  where="bench times: fault `start`/`end`, `[[command]] at`, window and track `start`/`end`"),
+    "offset": Bound("a time offset", -MAX_DURATION_S, MAX_DURATION_S, "s", note="30 days",
+                    where="time parameters of faults (`delay`, `jitter`, `gap`, `ramp`) and sensors"),
+    "timeout": Bound("a timeout", 0.0, 3600.0, "s", low_open=True, note="1 hour",
+                     where="`[dut]` start-up and shutdown timeouts, `[clock]` timeout and budgets, serial "
+                     "`write_timeout`"),
+    "period": Bound("a period", _MS, MAX_DURATION_S, "s", zero=True, note="30 days",
+                    where="what repeats a fault: `garbage` `every`, synthetic `bad_frames` `every` (0: once)"),
+    "events": Bound("a number of fault events per window", 0, 1_000_000,
+                    where="window length / `every` of a periodic fault"),
+    "rate": Bound("a rate", 0.0, 10_000.0, "Hz", low_open=True,
+                  where="`[dut] output_rate`, sensor rates, `[truth] internal_rate`, `[plant] command_rate`"),
+    "imu_rate": Bound("an IMU rate", 1.0, 1000.0, "Hz", note="the ICD's IMU frame rates", where="`[imu] rate`"),
+    "runs": Bound("a number of runs", 1, 10_000, where="`[run] monte_carlo`, the length of `seeds`"),
+    "seed": Bound("a seed", 0, 2**63 - 1, note="2^63 - 1", where="`[run] seeds`, `first_seed`"),
+    "repeat": Bound("a repeat count", 1, 100_000, where="segment `repeat`"),
+    "segments": Bound("a number of segments", 1, 100_000, note="after repeats", where="a motion script"),
+    "burst": Bound("a burst length", 1, 65_536, "bytes", where="`garbage` `length`"),
+    "copies": Bound("a number of copies", 1, 100, where="`duplicate` `copies`"),
+    "count": Bound("a count", 0, 1_000_000_000, where="`counter_skip` `skip`"),
+    "baud": Bound("a baud rate", 1, 10_000_000, "baud", where="`baud_mismatch` `baud`, serial `baudrate`"),
+    "speed_factor": Bound("a speed factor", 0.0, 1000.0, low_open=True, where="`[clock] speed`"),
+    "text_file": Bound("a text file size", 0, 64 * _MiB, "MiB", scale=_MiB,
+                       where="TOML and CSV inputs: cases, scenarios, parameter sets, fault, mapping, vehicle, "
+                       "track files"),
+    "log_file": Bound("a log file size", 0, 1024 * _MiB, "MiB", scale=_MiB, where="field logs given to `bench replay`"),
 }
 
 
@@ -135,8 +148,8 @@ def bounded_quantity(
 
 def markdown_table(kinds: tuple[str, ...] | None = None) -> str:
     """The bounds as a Markdown table (for the docs)."""
-    rows = ["| kind | what | allowed |", "|---|---|---|"]
+    rows = ["| value | allowed | where |", "|---|---|---|"]
     for k in kinds or tuple(BOUNDS):
         b = BOUNDS[k]
-        rows.append(f"| `{k}` | {b.what} | {b.text()} |")
+        rows.append(f"| {b.what} | {b.text()} | {b.where} |")
     return "\n".join(rows)
