@@ -167,7 +167,7 @@ class _UnitParser:
         else:
             name = _ALIASES.get(tok, tok)
             if name not in _UNITS:
-                if "/" in name:  # alias to an expression such as kph
+                if tok in _ALIASES and "/" in name:  # alias to an expression such as kph
                     scale, dim = _UnitParser(name).parse()
                 else:
                     raise ValueError(f"unknown unit {tok!r} in {self.text!r}")
@@ -246,8 +246,9 @@ def quantity(
     number, unit = float(m.group(1)), m.group(2) or default_unit
     try:
         scale, dim = parse_unit(unit)
-    except ValueError as exc:
-        raise ConfigError(f"{exc}; expected {dimension} such as '1 {default_unit}'", file=file, key=key) from None
+    except (ValueError, ArithmeticError) as exc:  # ArithmeticError: "km^400" overflows
+        reason = str(exc) if isinstance(exc, ValueError) else f"unit {unit!r} is out of range"
+        raise ConfigError(f"{reason}; expected {dimension} such as '1 {default_unit}'", file=file, key=key) from None
     if dim != expected:
         raise ConfigError(
             f"expected {dimension} such as '1 {default_unit}', found {value!r} ({_describe(dim)})",

@@ -6,6 +6,8 @@ from __future__ import annotations
 import math
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from bench.config.table import Table, check_keys, unknown_key
 from bench.errors import ConfigError
@@ -84,3 +86,28 @@ def test_unknown_keys_name_the_key_and_list_the_allowed():
     e = _err(check_keys, {"reporting": {}}, ("case", "run"), file=F, noun="table")
     assert e.key == "reporting" and e.reason == "unknown table 'reporting'; expected one of: case, run"
     assert unknown_key("x", [], file=F).reason.endswith("expected one of: none")
+
+
+_UNIT_TOKENS = ["m", "km", "s", "ms", "h", "Hz", "deg", "rad", "g", "ug", "%", "ppm", "^", "/", "*", "(", ")",
+                "sqrt(", "2", "-3", "400", "0.5", " "]
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    st.one_of(
+        st.floats(allow_nan=True, allow_infinity=True),
+        st.integers(),
+        st.text(max_size=30),
+        st.builds(lambda n, u: f"{n} {''.join(u)}", st.floats(allow_nan=True, allow_infinity=True) | st.integers(),
+                  st.lists(st.sampled_from(_UNIT_TOKENS), max_size=8)),
+    ),
+    st.sampled_from(["length", "time", "frequency", "angular_rate", "dimensionless"]),
+)
+def test_quantity_is_finite_or_a_config_error(value, dimension):
+    """Whatever a file says, a quantity is a finite SI value or a ConfigError, never a crash."""
+    try:
+        x = quantity(value, dimension, "1" if dimension == "dimensionless" else "s" if dimension == "time" else "m"
+                     if dimension == "length" else "Hz" if dimension == "frequency" else "rad/s")
+    except ConfigError:
+        return
+    assert math.isfinite(x)
