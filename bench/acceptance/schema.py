@@ -263,7 +263,8 @@ def _links(t: Table | None) -> dict[str, dict[str, Any]]:
         assert lt is not None
         vals: dict[str, Any] = {}
         for k, kind in LINK_KEYS[name].items():
-            v = {"str": lt.str, "int": lt.int, "bool": lt.bool}[kind](k)
+            get = {"str": lt.str, "bool": lt.bool}.get(kind)
+            v = get(k) if get else lt.int(k, minimum=1, bound="baud")  # baud and bit rates
             if v is not None:
                 vals[k] = v
         lt.finish()

@@ -110,7 +110,8 @@ BOUNDS: dict[str, Bound] = {
     "burst": Bound("a burst length", 1, 65_536, "bytes", where="`garbage` `length`"),
     "copies": Bound("a number of copies", 1, 100, where="`duplicate` `copies`"),
     "count": Bound("a count", 0, 1_000_000_000, where="`counter_skip` `skip`"),
-    "baud": Bound("a baud rate", 1, 10_000_000, "baud", where="`baud_mismatch` `baud`, serial `baudrate`"),
+    "baud": Bound("a baud rate", 1, 10_000_000, "baud",
+                  where="`baud_mismatch` `baud`, serial `baudrate`, `[dut.links]` baud and bit rates"),
     "speed_factor": Bound("a speed factor", 0.0, 1000.0, low_open=True, where="`[clock] speed`"),
     "text_file": Bound("a text file size", 0, 64 * _MiB, "MiB", scale=_MiB,
                        where="TOML and CSV inputs: cases, scenarios, parameter sets, fault, mapping, vehicle, "
