@@ -105,6 +105,8 @@ BOUNDS: dict[str, Bound] = {
     "imu_rate": Bound("an IMU rate", 1.0, 1000.0, "Hz", note="the ICD's IMU frame rates", where="`[imu] rate`"),
     "runs": Bound("a number of runs", 1, 10_000, where="`[run] monte_carlo`, the length of `seeds`"),
     "seed": Bound("a seed", 0, 2**63 - 1, note="2^63 - 1", where="`[run] seeds`, `first_seed`"),
+    "points": Bound("a number of truth points", 1, 100_000_000, note="27.7 h at 1 kHz",
+                    where="a motion script's duration x `[truth] internal_rate`, a plant's duration / `step`"),
     "repeat": Bound("a repeat count", 1, 100_000, where="segment `repeat`"),
     "segments": Bound("a number of segments", 1, 100_000, note="after repeats", where="a motion script"),
     "burst": Bound("a burst length", 1, 65_536, "bytes", where="`garbage` `length`"),

@@ -20,7 +20,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from bench.config.bounds import bounded_quantity
+from bench.config.bounds import bounded_quantity, check
 from bench.config.table import check_keys
 from bench.errors import ConfigError
 from bench.plant.driver import parse_commands
@@ -71,6 +71,8 @@ def plant_setup(doc: Mapping[str, Any], *, file: str, base: Path) -> PlantSetup:
     if not 0.0 < step <= 0.1:
         raise ConfigError(f"expected a communication step within (0, 100 ms], found {plant.get('step')!r}", file=file,
                           key="plant.step")
+    check("points", round(duration / step), file=file, key="plant.duration",
+          shown=f"{round(duration / step)} steps ({duration:g} s / {step:g} s)")
     decimate = round(sample / step)
     if decimate < 1 or abs(decimate * step - sample) > 1e-9:
         raise ConfigError("the sample spacing must be a whole number of communication steps", file=file,

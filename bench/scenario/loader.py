@@ -122,9 +122,13 @@ def load_scenario(ref: str | Path) -> Scenario:
             file=str(path),
             key="segment",
         )
+    sc = Scenario(id=str(meta["id"]), title=str(meta.get("title", "")), path=path, doc=doc, meta=meta)
     if "segment" in doc:
-        check_script_size(doc["segment"], file=str(path))
-    return Scenario(id=str(meta["id"]), title=str(meta.get("title", "")), path=path, doc=doc, meta=meta)
+        truth = doc.get("truth", {})
+        if not isinstance(truth, Mapping):
+            raise ConfigError("expected a [truth] table", file=str(path), key="truth")
+        check_script_size(doc["segment"], file=str(path), rate_hz=sc.internal_rate_hz)
+    return sc
 
 
 def _track_trajectory(sc: Scenario) -> Trajectory:

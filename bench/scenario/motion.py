@@ -187,6 +187,8 @@ def build_profile(
                     params={k: v for k, v in seg.items() if k not in ("kind", "label")},
                 )
             )
+    points = math.ceil(b.t * internal_rate_hz) + 1  # the position grid, 48 bytes each
+    check("points", points, file=file, key="segment", shown=f"{points} ({b.t:g} s at {internal_rate_hz:g} Hz)")
     return ProfileTrajectory(
         lat0=lat0,
         lon0=lon0,

@@ -114,10 +114,11 @@ def _limits(table: Mapping[str, Any], base: Limits, key: str, file: str | None) 
     return out
 
 
-def check_script_size(segments: Any, *, file: str | None) -> None:
+def check_script_size(segments: Any, *, file: str | None, rate_hz: float = 1000.0) -> None:
     """Refuse a motion script that would not stay bounded: each ``repeat`` and the count of
-    segments after repeats within their bounds, the declared durations within 30 days
-    (what cannot be known before the motion is built, :func:`build_profile` checks as it goes)."""
+    segments after repeats within their bounds, the declared durations within 30 days and
+    within the truth grid at ``rate_hz`` (what cannot be known before the motion is built,
+    :func:`build_profile` checks as it goes)."""
     if not isinstance(segments, list):
         return  # build_profile says what is wrong
     total_n, total_s = 0, 0.0
@@ -137,3 +138,6 @@ def check_script_size(segments: Any, *, file: str | None) -> None:
             total_s += repeat * d
             if total_s > MAX_DURATION_S:
                 check("duration", total_s, file=file, key=f"{key}.duration", shown=f"{total_s:g} s up to {key}")
+            points = math.ceil(total_s * rate_hz) + 1
+            check("points", points, file=file, key=f"{key}.duration",
+                  shown=f"{points} ({total_s:g} s up to {key} at {rate_hz:g} Hz)")

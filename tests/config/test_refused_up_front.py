@@ -80,6 +80,7 @@ def test_a_run_duration_of_1e300_s_is_refused(capsys, write):
         ('duration = "60 s"', 'duration = "60 s"\nrepeat = 100000000', "segment[0].repeat", "<= 100000"),
         ('duration = "60 s"', 'duration = "1e300 s"', "segment[0].duration", "<= 2592000 s"),
         ('duration = "60 s"', 'duration = "1728000 s"\nrepeat = 2', "segment[0].duration", "<= 2592000 s"),
+        ('duration = "60 s"', 'duration = "172800 s"', "segment[0].duration", "truth points <= 100000000"),
         ('height = "50 m"', 'height = "1e400 m"', "initial.height", "finite"),
     ],
 )
