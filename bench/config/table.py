@@ -57,7 +57,10 @@ def unknown_key(
 def check_keys(
     data: Mapping[str, Any], allowed: Collection[str], *, file: str | None, key: str = "", noun: str = "key"
 ) -> None:
-    """Refuse the first key of ``data`` not in ``allowed`` (the message lists them)."""
+    """Refuse the first key of ``data`` not in ``allowed`` (the message lists them), or
+    ``data`` itself when it is not a table."""
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"expected a table, found {data!r} ({type_name(data)})", file=file, key=key or None)
     for name in data:
         if name not in allowed:
             raise unknown_key(name, allowed, file=file, key=key, noun=noun)
