@@ -167,7 +167,7 @@ class _UnitParser:
         else:
             name = _ALIASES.get(tok, tok)
             if name not in _UNITS:
-                if "/" in name:  # alias to an expression such as kph
+                if tok in _ALIASES and "/" in name:  # alias to an expression such as kph
                     scale, dim = _UnitParser(name).parse()
                 else:
                     raise ValueError(f"unknown unit {tok!r} in {self.text!r}")
@@ -229,14 +229,15 @@ def quantity(
     Raises
     ------
     ConfigError
-        When the value is not a number or a quantity of the expected dimension.
+        When the value is not a number or a quantity of the expected dimension, or is not
+        finite in SI (TOML's ``nan`` and ``inf``, ``"1e400 m"``, ``"1e306 km"``).
     """
     expected = parse_unit(DIMENSIONS[dimension])[1]
     if isinstance(value, bool):
         raise ConfigError(f"expected {dimension} such as '1 {default_unit}', found {value!r}", file=file, key=key)
     if isinstance(value, (int, float)):
         scale, dim = parse_unit(default_unit)
-        return float(value) * scale
+        return _finite(_times(value, scale), value, dimension, file, key)
     if not isinstance(value, str):
         raise ConfigError(f"expected {dimension} such as '1 {default_unit}', found {value!r}", file=file, key=key)
     m = _NUMBER.match(value)
@@ -245,15 +246,29 @@ def quantity(
     number, unit = float(m.group(1)), m.group(2) or default_unit
     try:
         scale, dim = parse_unit(unit)
-    except ValueError as exc:
-        raise ConfigError(f"{exc}; expected {dimension} such as '1 {default_unit}'", file=file, key=key) from None
+    except (ValueError, ArithmeticError) as exc:  # ArithmeticError: "km^400" overflows
+        reason = str(exc) if isinstance(exc, ValueError) else f"unit {unit!r} is out of range"
+        raise ConfigError(f"{reason}; expected {dimension} such as '1 {default_unit}'", file=file, key=key) from None
     if dim != expected:
         raise ConfigError(
             f"expected {dimension} such as '1 {default_unit}', found {value!r} ({_describe(dim)})",
             file=file,
             key=key,
         )
-    return number * scale
+    return _finite(number * scale, value, dimension, file, key)
+
+
+def _times(value: int | float, scale: float) -> float:
+    try:
+        return float(value) * scale
+    except OverflowError:  # an integer beyond any float
+        return math.inf
+
+
+def _finite(x: float, value: Any, dimension: str, file: str | None, key: str | None) -> float:
+    if not math.isfinite(x):
+        raise ConfigError(f"expected a finite {dimension}, found {value!r}", file=file, key=key)
+    return x
 
 
 def vector(

@@ -1,7 +1,8 @@
 """Acceptance: test cases, criteria, verdicts, and the runs that feed them.
 
 * :mod:`~bench.acceptance.case` -- the test-case file (schema in
-  :mod:`~bench.acceptance.schema`, :mod:`~bench.acceptance.criteria_schema`);
+  :mod:`~bench.acceptance.schema`, :mod:`~bench.acceptance.criteria_schema`,
+  :mod:`~bench.acceptance.run_schema`);
 * :mod:`~bench.acceptance.criteria` -- limits by meaning, marginal bands, Monte Carlo
   statistics; :mod:`~bench.acceptance.verdict` -- PASS, MARGINAL, FAIL, ERROR;
 * :mod:`~bench.acceptance.integrity_criteria` -- the output-integrity criteria every case

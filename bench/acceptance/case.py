@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.acceptance.criteria import Criterion
+from bench.config import files
 from bench.errors import ConfigError
 from bench.faults.schedule import FaultSchedule
 from bench.scoring.metrics import ScoringSettings
@@ -210,22 +211,16 @@ def is_case_file(path: Path) -> bool:
     if path.suffix != ".toml" or not path.is_file():
         return False
     try:
-        with path.open("rb") as fh:
-            doc = tomllib.load(fh)
-    except (OSError, tomllib.TOMLDecodeError):
+        doc = files.read_toml(path, what="test case file")
+    except ConfigError:
         return path.parent.name == "test_cases"  # a broken case file still is one
     return isinstance(doc.get("case"), Mapping)
 
 
 def load_case(path: str | Path, *, check_files: bool = True) -> TestCase:
-    """Read and check a test case file."""
+    """Read and check a test case file (a regular UTF-8 file of at most 64 MiB)."""
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError("file not found", file=str(p)) from None
-    except UnicodeDecodeError as exc:
-        raise ConfigError(f"not UTF-8 text: {exc}", file=str(p)) from None
+    text = files.read_text(p, what="test case file")
     return parse_case(text, file=str(p), base=p.resolve().parent, check_files=check_files, path=p)
 
 

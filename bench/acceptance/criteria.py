@@ -18,6 +18,13 @@ Over Monte Carlo runs (``[monte_carlo]``):
   meet it: the upper bound for ``at_most``/``within``, the lower for ``at_least``;
   too few runs for the confidence asked is ERROR;
 * ``aggregate = mean | median | max | min`` -- that statistic of the runs' values.
+
+:class:`Limit`, :class:`MonteCarlo` and :class:`Criterion` check themselves when built
+(finite bounds, a known comparator, ``low < high``, a non-negative band, a percentile in
+(0, 100), a confidence in (0, 1)) and raise :class:`~bench.errors.ConfigError` naming the
+field, so a ``nan``, an ``inf`` or a misspelt comparator never reaches judging, whether the
+criterion comes from a file or from Python. :func:`judge_value` still gives ERROR, never
+PASS, for a margin that is not a number.
 """
 
 from __future__ import annotations
@@ -31,6 +38,7 @@ import numpy as np
 from scipy.stats import binom
 
 from bench.acceptance.verdict import Verdict
+from bench.errors import ConfigError
 from bench.scoring.windows import WindowSpec
 from bench.units import to_unit
 
@@ -49,15 +57,40 @@ __all__ = [
 
 COMPARATORS = ("at_most", "at_least", "within", "in_range")
 AGGREGATES = ("mean", "median", "max", "min")
+MC_MODES = ("each", "pass_runs", "percentile", "aggregate")
+
+
+def _finite(x: Any) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
 @dataclass(frozen=True)
 class Limit:
-    """``comparator`` with SI bounds (``low``/``high``; one of them for one-sided)."""
+    """``comparator`` with SI bounds (``low``/``high``; one of them for one-sided).
+
+    ``at_most`` and ``within`` take ``high`` only (``within``: a tolerance >= 0),
+    ``at_least`` ``low`` only, ``in_range`` both with ``low < high``; all finite.
+    ConfigError otherwise, its key the comparator.
+    """
 
     comparator: str
     low: float | None = None
     high: float | None = None
+
+    def __post_init__(self) -> None:
+        c = self.comparator
+        if c not in COMPARATORS:
+            raise ConfigError(f"unknown comparator {c!r}; expected one of {', '.join(COMPARATORS)}", key="comparator")
+        need = {"at_most": (False, True), "within": (False, True), "at_least": (True, False), "in_range": (True, True)}
+        for side, value, wanted in (("low", self.low, need[c][0]), ("high", self.high, need[c][1])):
+            if not wanted and value is not None:
+                raise ConfigError(f"{c} takes no {side} bound, found {value!r}", key=c)
+            if wanted and not _finite(value):
+                raise ConfigError(f"expected a finite {side} bound, found {value!r}", key=c)
+        if c == "within" and self.high < 0:  # type: ignore[operator]
+            raise ConfigError(f"expected a non-negative tolerance, found {self.high!r}", key=c)
+        if c == "in_range" and not self.low < self.high:  # type: ignore[operator]
+            raise ConfigError(f"expected low < high, found [{self.low!r}, {self.high!r}]", key=c)
 
     def text(self, unit: str) -> str:
         def f(x: float | None) -> str:
@@ -83,6 +116,35 @@ class MonteCarlo:
     percentile: float | None = None
     confidence: float | None = None
     aggregate: str | None = None
+
+    def __post_init__(self) -> None:
+        k = "monte_carlo"
+        if self.mode not in MC_MODES:
+            raise ConfigError(f"unknown mode {self.mode!r}; expected one of {', '.join(MC_MODES)}", key=k)
+        given = {n: getattr(self, n) is not None for n in ("pass_runs", "percentile", "confidence", "aggregate")}
+        wants = {"each": (), "pass_runs": ("pass_runs",), "percentile": ("percentile", "confidence"),
+                 "aggregate": ("aggregate",)}[self.mode]
+        for name, present in given.items():
+            if present != (name in wants):
+                state = "needs" if not present else "takes no"
+                raise ConfigError(f"a {self.mode} criterion {state} {name}", key=f"{k}.{name}")
+        if self.mode == "pass_runs" and (
+            not isinstance(self.pass_runs, int) or isinstance(self.pass_runs, bool) or self.pass_runs < 1
+        ):
+            raise ConfigError(f"expected an integer >= 1, found {self.pass_runs!r}", key=f"{k}.pass_runs")
+        if self.mode == "percentile":
+            if not (_finite(self.percentile) and 0.0 < self.percentile < 100.0):  # type: ignore[operator]
+                raise ConfigError(
+                    f"expected a percentile between 0 and 100, found {self.percentile!r}", key=f"{k}.percentile"
+                )
+            if not (_finite(self.confidence) and 0.0 < self.confidence < 1.0):  # type: ignore[operator]
+                raise ConfigError(
+                    f"expected a probability between 0 and 1 (or %), found {self.confidence!r}", key=f"{k}.confidence"
+                )
+        if self.mode == "aggregate" and self.aggregate not in AGGREGATES:
+            raise ConfigError(
+                f"expected one of {', '.join(AGGREGATES)}, found {self.aggregate!r}", key=f"{k}.aggregate"
+            )
 
     def text(self) -> str:
         if self.mode == "pass_runs":
@@ -113,6 +175,24 @@ class Criterion:
     relative_to: str | None = None
     options: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
     monte_carlo: MonteCarlo = field(default_factory=MonteCarlo)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.limit, Limit):
+            raise ConfigError(f"expected a Limit, found {self.limit!r}", key="limit")
+        if not isinstance(self.monte_carlo, MonteCarlo):
+            raise ConfigError(f"expected a MonteCarlo, found {self.monte_carlo!r}", key="monte_carlo")
+        if self.marginal is not None and self.marginal_relative is not None:
+            raise ConfigError("give either 'marginal' or 'marginal_relative', not both", key="marginal")
+        for name in ("marginal", "marginal_relative"):
+            band = getattr(self, name)
+            if band is not None and not (_finite(band) and band >= 0.0):
+                raise ConfigError(f"expected a finite non-negative band, found {band!r}", key=name)
+        if self.monte_carlo.mode == "percentile" and self.limit.comparator == "in_range":
+            raise ConfigError(
+                "a percentile bound applies to at_most, at_least or within, not in_range", key="monte_carlo.percentile"
+            )
+        if self.relative_to is not None and (self.variant is None or self.relative_to == self.variant):
+            raise ConfigError("a comparison (relative_to) names another variant it judges", key="relative_to")
 
     def band(self) -> float:
         """The marginal band, SI (0 without one)."""
@@ -146,6 +226,8 @@ def judge_value(limit: Limit, band: float, value: float) -> tuple[Verdict, float
         margin = limit.high - abs(value)  # type: ignore[operator]
     else:
         margin = min(value - limit.low, limit.high - value)  # type: ignore[operator]
+    if math.isnan(margin):  # cannot happen with a checked Limit; never a PASS
+        return Verdict.ERROR, math.nan
     if margin < 0:
         return Verdict.FAIL, margin
     if band > 0 and margin < band:

@@ -7,13 +7,15 @@ every key.
 from __future__ import annotations
 
 import difflib
-from collections.abc import Mapping
-from typing import Any
+import math
+from collections.abc import Callable, Mapping
+from typing import Any, TypeVar
 
 from bench.acceptance.case import ClockSpec, DutSpec, RunSpec
 from bench.acceptance.criteria import AGGREGATES, COMPARATORS, Criterion, Limit, MonteCarlo
 from bench.acceptance.integrity_criteria import parse_integrity
-from bench.acceptance.tomlcheck import Table, type_name
+from bench.config.table import Table, type_name
+from bench.errors import ConfigError
 from bench.scenario.motion import GNSS_FLAGS, SEGMENT_KINDS
 from bench.scoring.faults import FLAGS, FaultSettings, target_bit
 from bench.scoring.frameswitch import SwitchSettings
@@ -24,6 +26,19 @@ from bench.units import quantity
 __all__ = ["window_spec", "scoring_settings", "criteria"]
 
 _ID = r"[A-Za-z0-9][A-Za-z0-9_.-]*"
+_T = TypeVar("_T")
+
+
+def _built(t: Table, make: Callable[..., _T], *args: Any, **kwargs: Any) -> _T:
+    """``make(...)`` (a Limit, MonteCarlo or Criterion checking itself), its ConfigError
+    given the file and the key within table ``t``."""
+    try:
+        return make(*args, **kwargs)
+    except ConfigError as exc:
+        key = exc.key
+        if key and t.key.endswith(".monte_carlo"):
+            key = key.removeprefix("monte_carlo").lstrip(".") or None
+        raise t.error(key, exc.reason) from None
 
 
 # -- scoring and windows -------------------------------------------------------------------
@@ -127,6 +142,8 @@ def _limit_value(t: Table, key: str, value: Any, dimension: str, unit: str) -> f
     if dimension == "count":
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise t.error(key, f"expected a number (a count), found {value!r} ({type_name(value)})")
+        if not math.isfinite(value):
+            raise t.error(key, f"expected a finite number (a count), found {value!r}")
         return float(value)
     return quantity(value, dimension, unit, file=t.file, key=t.path(key))
 
@@ -182,12 +199,12 @@ def _criterion(
         hi = _limit_value(t, f"{comp}[1]", raw[1], dimension, lim_unit)
         if not lo < hi:
             raise t.error(comp, f"expected low < high, found {raw!r}")
-        limit = Limit(comp, lo, hi)
+        limit = _built(t, Limit, comp, lo, hi)
     else:
         x = _limit_value(t, comp, raw, dimension, lim_unit)
         if comp == "within" and x < 0:
             raise t.error(comp, f"expected a non-negative tolerance, found {raw!r}")
-        limit = Limit(comp, x, None) if comp == "at_least" else Limit(comp, None, x)
+        limit = _built(t, Limit, comp, x, None) if comp == "at_least" else _built(t, Limit, comp, None, x)
     marginal = marginal_rel = None
     if t.has("marginal") and t.has("marginal_relative"):
         raise t.error("marginal", "give either 'marginal' or 'marginal_relative', not both")
@@ -220,7 +237,9 @@ def _criterion(
     paper = t.str("paper", "")
     description = t.str("description", "")
     t.finish()
-    return Criterion(
+    return _built(
+        t,
+        Criterion,
         id=str(cid),
         requirements=tuple(reqs),
         metric=str(metric),
@@ -259,13 +278,13 @@ def _monte_carlo(t: Table | None, comparator: str) -> MonteCarlo:
             raise t.error("confidence", f"expected a probability between 0 and 1 (or %), found {conf:g}")
         if comparator == "in_range":
             raise t.error("percentile", "a percentile bound applies to at_most, at_least or within, not in_range")
-        return MonteCarlo("percentile", percentile=pct, confidence=conf)
+        return _built(t, MonteCarlo, "percentile", percentile=pct, confidence=conf)
     if conf is not None:
         raise t.error("confidence", "a confidence goes with a percentile")
     if pass_runs is not None:
-        return MonteCarlo("pass_runs", pass_runs=pass_runs)
+        return _built(t, MonteCarlo, "pass_runs", pass_runs=pass_runs)
     if agg is not None:
-        return MonteCarlo("aggregate", aggregate=agg)
+        return _built(t, MonteCarlo, "aggregate", aggregate=agg)
     return MonteCarlo()
 
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from bench.acceptance.criteria import Criterion, Limit
-from bench.acceptance.tomlcheck import Table, type_name
+from bench.config.table import Table, type_name
 from bench.errors import ConfigError
 from bench.scoring.epochs import EpochBounds, OutputIntegrity
 from bench.scoring.metrics import METRICS, ScoringSettings

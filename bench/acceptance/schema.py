@@ -1,6 +1,6 @@
 """The test-case schema: section by section checks of a parsed case file.
 
-Each ``_section`` function reads one table with :class:`~bench.acceptance.tomlcheck.Table`
+Each ``_section`` function reads one table with :class:`~bench.config.table.Table`
 (types, units, choices, unknown keys) and returns the dataclass of
 :mod:`bench.acceptance.case`. ``docs/test_cases.md`` documents every key.
 """
@@ -14,12 +14,9 @@ from pathlib import Path
 from typing import Any
 
 from bench.acceptance.case import (
-    CLOCK_MODES,
     DUT_KINDS,
-    ClockSpec,
     Command,
     DutSpec,
-    RunSpec,
     ScenarioRef,
     SensorSet,
     TestCase,
@@ -28,7 +25,9 @@ from bench.acceptance.case import (
 from bench.acceptance.criteria_schema import criteria as parse_criteria
 from bench.acceptance.criteria_schema import scoring_settings
 from bench.acceptance.integrity_criteria import with_integrity
-from bench.acceptance.tomlcheck import Table, type_name
+from bench.acceptance.run_schema import clock_spec, run_spec
+from bench.config.files import read_toml, regular_file
+from bench.config.table import Table, check_keys, type_name
 from bench.errors import ConfigError
 from bench.faults.schedule import FaultSchedule, parse_schedule
 
@@ -72,9 +71,7 @@ def build_case(
 ) -> TestCase:
     """Check every section of a parsed case and assemble the :class:`TestCase`."""
     top = Table(doc, file)
-    for k in doc:
-        if k not in TOP_KEYS:
-            raise ConfigError(f"unknown table {k!r}; expected one of: {', '.join(TOP_KEYS)}", file=file, key=k)
+    check_keys(doc, TOP_KEYS, file=file, noun="table")
     c = top.table("case", required=True)
     assert c is not None
     case_id = c.str("id", required=True, pattern=_ID, expect="an identifier such as 'S000-AP'")
@@ -97,8 +94,8 @@ def build_case(
         faults = _fault_files(top, fault_files, faults, base)
     commands = tuple(_command(t) for t in top.tables("command"))
     dut = _dut(top.table("dut", required=True), base, check_files)  # type: ignore[arg-type]
-    clock = _clock(top.table("clock"))
-    run = _run(top.table("run"))
+    clock = clock_spec(top.table("clock"))
+    run = run_spec(top.table("run"))
     scoring = scoring_settings(top.table("scoring"), dut, clock)
     criteria = parse_criteria(top.tables("criterion"), scoring, tuple(requirements), dut, run)
     if not criteria:
@@ -136,7 +133,7 @@ def _scenario(t: Table, base: Path | None, check_files: bool) -> ScenarioRef:
     fmu = t.str("fmu")
     driver = t.str("driver")
     vehicle = t.str("vehicle")
-    duration = t.quantity("duration", "time", "s", positive=True)
+    duration = t.quantity("duration", "time", "s", positive=True, bound="duration")
     t.finish()
     if (script is None) == (fmu is None):
         raise t.error("script", "expected either 'script' (a motion script or track) or 'fmu' with 'driver'")
@@ -147,18 +144,24 @@ def _scenario(t: Table, base: Path | None, check_files: bool) -> ScenarioRef:
     ref = ScenarioRef(script, fmu, driver, vehicle, duration, base)
     if check_files:
         if script is not None:
+            from bench.scenario.loader import find_scenario, load_scenario
+
             p = ref.resolve(script)
             if p is None or not p.exists():
-                from bench.scenario.loader import find_scenario
-
                 try:
-                    find_scenario(script)
+                    p = find_scenario(script)
                 except ConfigError as exc:
                     raise t.error("script", f"no scenario file {script!r} next to the case, and {exc}") from None
+            try:
+                load_scenario(p)  # a regular file of bounded size, its values checked up front
+            except ConfigError as exc:
+                raise t.error("script", str(exc)) from None
         for name, value in (("driver", driver), ("vehicle", vehicle)):
             p = ref.resolve(value)
             if p is not None and not p.exists():
                 raise t.error(name, f"file not found: {p}")
+            if p is not None:
+                regular_file(p, what=f"{name} file")
     return ref
 
 
@@ -167,7 +170,7 @@ def _check_imu(params: Mapping[str, Any], file: str, key: str) -> None:
 
     t = Table(params, file, key)
     grade = t.str("grade")
-    t.quantity("rate", "frequency", "Hz", positive=True)
+    t.quantity("rate", "frequency", "Hz", positive=True, bound="imu_rate")
     t.finish()
     if grade is not None:
         try:
@@ -227,8 +230,6 @@ def _load_fault_kinds() -> None:
 
 def _fault_files(top: Table, names: list[str], inline: FaultSchedule, base: Path | None) -> FaultSchedule:
     """Inline windows, then those of each fault file (``[[fault]]`` tables, numbered on)."""
-    from bench.scenario.loader import read_toml
-
     windows = list(inline)
     for i, name in enumerate(names):
         p = Path(name)
@@ -236,10 +237,11 @@ def _fault_files(top: Table, names: list[str], inline: FaultSchedule, base: Path
             p = base / p
         if not p.exists():
             raise top.error(f"fault_files[{i}]", f"file not found: {p}")
-        doc = read_toml(p)
-        for k in doc:
-            if k not in ("fault", "description", "reference"):
-                raise ConfigError(f"unknown key {k!r}; expected [[fault]] tables", file=str(p), key=k)
+        try:
+            doc = read_toml(p, what="fault file")
+        except ConfigError as exc:
+            raise top.error(f"fault_files[{i}]", str(exc)) from None
+        check_keys(doc, ("fault", "description", "reference"), file=str(p))
         windows += list(parse_schedule(doc.get("fault"), file=str(p), first_id=len(windows)))
     return FaultSchedule(windows)
 
@@ -263,7 +265,8 @@ def _links(t: Table | None) -> dict[str, dict[str, Any]]:
         assert lt is not None
         vals: dict[str, Any] = {}
         for k, kind in LINK_KEYS[name].items():
-            v = {"str": lt.str, "int": lt.int, "bool": lt.bool}[kind](k)
+            get = {"str": lt.str, "bool": lt.bool}.get(kind)
+            v = get(k) if get else lt.int(k, minimum=1, bound="baud")  # baud and bit rates
             if v is not None:
                 vals[k] = v
         lt.finish()
@@ -283,15 +286,18 @@ def _dut(t: Table, base: Path | None, check_files: bool) -> DutSpec:
     config_file = None
     if isinstance(raw_config, str):
         config_file = raw_config
-        if check_files and base is not None and not (base / raw_config).exists() and not Path(raw_config).exists():
-            raise t.error("config", f"file not found: {raw_config}")
+        if check_files and base is not None:
+            found = [p for p in (base / raw_config, Path(raw_config)) if p.exists()]
+            if not found:
+                raise t.error("config", f"file not found: {raw_config}")
+            regular_file(found[0], what="DUT configuration file")
     elif isinstance(raw_config, Mapping):
         config = dict(raw_config)
     else:
         raise t.error("config", f"expected a table or a file name, found {raw_config!r} ({type_name(raw_config)})")
-    rate = t.quantity("output_rate", "frequency", "Hz", 100.0, positive=True)
-    startup = t.quantity("startup_timeout", "time", "s", 5.0, positive=True)
-    shutdown = t.quantity("shutdown_timeout", "time", "s", 5.0, positive=True)
+    rate = t.quantity("output_rate", "frequency", "Hz", 100.0, positive=True, bound="rate")
+    startup = t.quantity("startup_timeout", "time", "s", 5.0, positive=True, bound="timeout")
+    shutdown = t.quantity("shutdown_timeout", "time", "s", 5.0, positive=True, bound="timeout")
     links = _links(t.table("links"))
     description = t.str("description", "")
     synthetic_raw = t.raw("synthetic", None)
@@ -353,47 +359,3 @@ def _dut(t: Table, base: Path | None, check_files: bool) -> DutSpec:
         synthetic=synthetic,
         description=str(description),
     )
-
-
-def _clock(t: Table | None) -> ClockSpec:
-    if t is None:
-        return ClockSpec()
-    mode = t.str("mode", "lockstep", choices=CLOCK_MODES)
-    step = t.time_ns("step", "10 ms", positive=True)
-    timeout = t.time_ns("timeout", "5 s", positive=True)
-    budget = t.time_ns("budget", positive=True)
-    budget_p99 = t.time_ns("budget_p99", positive=True)
-    speed = t.number("speed", 1.0)
-    t.finish()
-    if speed is None or speed <= 0:
-        raise t.error("speed", f"expected a positive number (2: twice real time), found {speed!r}")
-    return ClockSpec(str(mode), int(step), int(timeout), budget, budget_p99, float(speed))  # type: ignore[arg-type]
-
-
-def _run(t: Table | None) -> RunSpec:
-    if t is None:
-        return RunSpec()
-    seeds_raw = t.raw("seeds")
-    mc = t.int("monte_carlo", minimum=1)
-    first = t.int("first_seed", 1, minimum=0)
-    truth_rate = t.quantity("truth_rate", "frequency", "Hz", 100.0, positive=True)
-    t.finish()
-    if seeds_raw is not None and mc is not None:
-        raise t.error("monte_carlo", "give either 'seeds' or 'monte_carlo', not both")
-    if seeds_raw is not None:
-        if (
-            not isinstance(seeds_raw, list)
-            or not seeds_raw
-            or not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in seeds_raw)
-        ):
-            raise t.error("seeds", f"expected a non-empty array of non-negative integers, found {seeds_raw!r}")
-        if len(set(seeds_raw)) != len(seeds_raw):
-            raise t.error("seeds", f"expected distinct seeds, found {seeds_raw!r}")
-        seeds = tuple(seeds_raw)
-    elif mc is not None:
-        seeds = tuple(range(int(first), int(first) + mc))  # type: ignore[arg-type]
-    else:
-        seeds = (int(first),)  # type: ignore[arg-type]
-    if not 1.0 <= truth_rate <= 1000.0:  # type: ignore[operator]
-        raise t.error("truth_rate", f"expected 1 .. 1000 Hz, found {truth_rate:g} Hz")
-    return RunSpec(seeds, float(truth_rate))  # type: ignore[arg-type]

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bench.acceptance.corrupt import CORRUPTIONS
-from bench.acceptance.tomlcheck import Table
+from bench.config.table import Table
 from bench.scenario.motion import GNSS_FLAGS
 from bench.scoring.faults import target_bit
 from bench.units import vector
@@ -229,6 +229,11 @@ def _output(t: Table) -> OutputDefect:
         raise t.error("every", f"missing field; {kind} needs a positive 'every'")
     if kind == "drop_every" and d.every != int(d.every):
         raise t.error("every", "expected a whole number of epochs")
+    if kind == "bad_frames":  # every so many seconds: a period, and a bounded count of them
+        t.bounded("every", "period", d.every, d.every)
+        if d.end_ns is not None:
+            n = int((d.end_ns - (d.start_ns or 0)) * 1e-9 / d.every) + 1
+            t.bounded("every", "events", n, f"{n} bad frames (every {d.every:g} s)")
     return d
 
 

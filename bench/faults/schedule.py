@@ -12,7 +12,10 @@ A schedule is a list of TOML tables::
 
 Kinds are registered by the modules that implement them (:func:`register_kind`), with
 the parameters they take, so a schedule is checked on load and errors name the file and
-the key. Every window is recorded (topic ``/faults``) so scoring knows where they were.
+the key. Times and parameters are finite and bounded (:mod:`bench.config.bounds`: a
+window within 30 days, a ``period`` parameter such as ``every`` 0 or at least 1 ms, and at
+most 1,000,000 events per window). Every window is recorded (topic ``/faults``) so scoring
+knows where they were.
 """
 
 from __future__ import annotations
@@ -21,6 +24,8 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from bench.config.bounds import bounded_quantity, check
+from bench.config.table import check_keys
 from bench.errors import ConfigError
 from bench.units import quantity
 
@@ -42,12 +47,16 @@ LAYERS = ("sensor", "wire")
 @dataclass(frozen=True)
 class ParamSpec:
     """One parameter of a fault kind: dimension (see :data:`bench.units.DIMENSIONS`, or
-    ``"text"``/``"integer"``/``"boolean"``), unit of bare numbers, default (None: required)."""
+    ``"text"``/``"integer"``/``"boolean"``), unit of bare numbers, default (None: required),
+    and the :data:`bench.config.bounds.BOUNDS` kind bounding it (``bound``; time
+    parameters default to ``offset``, within +-30 days). A ``period`` parameter repeats
+    the fault; the window may hold at most the ``events`` bound of them."""
 
     dimension: str
     unit: str = ""
     default: Any = None
     description: str = ""
+    bound: str | None = None
 
 
 @dataclass(frozen=True)
@@ -181,14 +190,31 @@ def _param(value: Any, spec: ParamSpec, file: str | None, key: str) -> Any:
     if spec.dimension == "integer":
         if not isinstance(value, int) or isinstance(value, bool):
             raise ConfigError(f"expected an integer, found {value!r}", file=file, key=key)
-        return value
+        return value if spec.bound is None else check(spec.bound, value, file=file, key=key)
     if spec.dimension == "boolean":
         if not isinstance(value, bool):
             raise ConfigError(f"expected true or false, found {value!r}", file=file, key=key)
         return value
+    kind = spec.bound or ("offset" if spec.dimension == "time" else None)
     if isinstance(value, list):
-        return [quantity(v, spec.dimension, spec.unit, file=file, key=f"{key}[{i}]") for i, v in enumerate(value)]
-    return quantity(value, spec.dimension, spec.unit, file=file, key=key)
+        return [_quantity(v, spec, kind, file, f"{key}[{i}]") for i, v in enumerate(value)]
+    return _quantity(value, spec, kind, file, key)
+
+
+def _quantity(value: Any, spec: ParamSpec, kind: str | None, file: str | None, key: str) -> float:
+    if kind is None:
+        return quantity(value, spec.dimension, spec.unit, file=file, key=key)
+    return bounded_quantity(value, spec.dimension, spec.unit, kind, file=file, key=key)
+
+
+def _check_events(params: Mapping[str, Any], spec: _Kind, start: float, end: float, file: str | None, k: str) -> None:
+    """At most the ``events`` bound of repetitions of a periodic fault in its window."""
+    for name, ps in spec.params.items():
+        every = params.get(name)
+        if ps.bound == "period" and isinstance(every, float) and every > 0.0:
+            n = int((end - start) / every) + 1
+            check("events", n, file=file, key=f"{k}.params.{name}",
+                  shown=f"{n} (a {end - start:g} s window, every {every:g} s)")
 
 
 def parse_schedule(tables: Any, *, file: str | None = None, key: str = "fault", first_id: int = 0) -> FaultSchedule:
@@ -203,11 +229,7 @@ def parse_schedule(tables: Any, *, file: str | None = None, key: str = "fault", 
         k = f"{key}[{i}]"
         if not isinstance(t, Mapping):
             raise ConfigError("expected a table", file=file, key=k)
-        for name in t:
-            if name not in allowed:
-                raise ConfigError(
-                    f"unknown key {name!r}; expected one of {', '.join(sorted(allowed))}", file=file, key=f"{k}.{name}"
-                )
+        check_keys(t, allowed, file=file, key=k)
         layer = t.get("layer", "sensor")
         if layer not in LAYERS:
             raise ConfigError(f"expected one of {', '.join(LAYERS)}, found {layer!r}", file=file, key=f"{k}.layer")
@@ -233,12 +255,14 @@ def parse_schedule(tables: Any, *, file: str | None = None, key: str = "fault", 
         end = (
             quantity(t["end"], "time", "s", file=file, key=f"{k}.end")
             if "end" in t
-            else start + quantity(t["duration"], "time", "s", file=file, key=f"{k}.duration")
+            else start + bounded_quantity(t["duration"], "time", "s", "duration", file=file, key=f"{k}.duration")
         )
         if start < 0.0 or end <= start:
             raise ConfigError(
                 f"expected 0 <= start < end, found start {start:g} s, end {end:g} s", file=file, key=f"{k}.end"
             )
+        check("time", start, file=file, key=f"{k}.start", shown=t["start"])
+        check("time", end, file=file, key=f"{k}.end" if "end" in t else f"{k}.duration", shown=t.get("end", end))
         raw = t.get("params", {})
         if not isinstance(raw, Mapping):
             raise ConfigError("expected a table of parameters", file=file, key=f"{k}.params")
@@ -256,6 +280,7 @@ def parse_schedule(tables: Any, *, file: str | None = None, key: str = "fault", 
                 raise ConfigError(f"missing parameter of {kind}", file=file, key=f"{k}.params.{name}")
             else:
                 params[name] = ps.default
+        _check_events(params, spec, start, end, file, k)
         windows.append(
             FaultWindow(first_id + i, layer, target, str(kind), round(start * 1e9), round(end * 1e9), params)
         )

@@ -92,7 +92,7 @@ def register_wire_kinds() -> None:
         msg + ser,
         "duplicate",
         {
-            "copies": _P("integer", "", 1, "extra copies of each frame"),
+            "copies": _P("integer", "", 1, "extra copies of each frame", "copies"),
             "gap": _P("time", "s", 0.0, "between a frame and each copy"),
         },
         "each frame is sent again",
@@ -124,7 +124,7 @@ def register_wire_kinds() -> None:
         "wire",
         msg + imu_t,
         "counter_skip",
-        {"skip": _P("integer", "", 1, "extra counter steps per frame")},
+        {"skip": _P("integer", "", 1, "extra counter steps per frame", "count")},
         "the counter jumps on every frame of the window",
     )
     reg(
@@ -139,8 +139,8 @@ def register_wire_kinds() -> None:
         ser,
         "garbage",
         {
-            "length": _P("integer", "", 16, "bytes per burst"),
-            "every": _P("time", "s", 0.0, "a burst every so often (0: one at the start)"),
+            "length": _P("integer", "", 16, "bytes per burst", "burst"),
+            "every": _P("time", "s", 0.0, "a burst every so often (0: one at the start)", "period"),
         },
         "random bytes between frames (never a frame start)",
     )
@@ -157,7 +157,7 @@ def register_wire_kinds() -> None:
         "wire",
         ser,
         "baud_mismatch",
-        {"baud": _P("integer", "", None, "the sender's actual baud rate")},
+        {"baud": _P("integer", "", None, "the sender's actual baud rate", "baud")},
         "bytes sent at another baud rate, as the receiving UART reads them",
     )
 

@@ -23,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from bench.config.bounds import bounded_quantity
+from bench.config.table import check_keys
 from bench.errors import ConfigError
 from bench.scenario.trajectory import SegmentInfo
 from bench.units import quantity
@@ -181,13 +183,10 @@ def parse_commands(
         key = f"command[{i}]"
         if not isinstance(ev, Mapping):
             raise ConfigError("expected a table", file=file, key=key)
-        for k in ev:
-            if k not in _EVENT_KEYS:
-                raise ConfigError(f"unknown key {k!r}; expected one of {', '.join(sorted(_EVENT_KEYS))}", file=file,
-                                  key=f"{key}.{k}")
+        check_keys(ev, _EVENT_KEYS, file=file, key=key)
         if "at" not in ev:
             raise ConfigError("missing field", file=file, key=f"{key}.at")
-        t = quantity(ev["at"], "time", "s", file=file, key=f"{key}.at")
+        t = bounded_quantity(ev["at"], "time", "s", "time", file=file, key=f"{key}.at")
         if t <= last_t or (i == 0 and t != 0.0):
             raise ConfigError(f"commands must start at 0 s and increase in time, found {t:g} s after {last_t:g} s",
                               file=file, key=f"{key}.at")
@@ -212,7 +211,7 @@ def parse_commands(
                 if set(raw) != {"to", "over"} or CHANNELS[name][0] == "lever":
                     raise ConfigError("a ramp is { to = VALUE, over = DURATION } (levers only step)", file=file, key=ck)
                 target = _value(name, raw["to"], file, f"{ck}.to")
-                over = quantity(raw["over"], "time", "s", file=file, key=f"{ck}.over")
+                over = bounded_quantity(raw["over"], "time", "s", "offset", file=file, key=f"{ck}.over")
                 if over <= 0.0:
                     raise ConfigError("expected a positive ramp duration", file=file, key=f"{ck}.over")
                 pieces[name].append(_Piece(t, t + over, current[name], target))

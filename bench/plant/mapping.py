@@ -27,6 +27,7 @@ For every channel ``bench = sign * k * (fmu - offset)`` with ``k`` the SI value 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,6 +35,8 @@ from typing import Any
 
 import numpy as np
 
+from bench.config.files import read_toml
+from bench.config.table import check_keys
 from bench.errors import ConfigError
 from bench.units import parse_unit
 
@@ -154,11 +157,15 @@ def _unit_factor(unit: str | None, expect: str, file: str, key: str) -> float:
 
 
 def _only(table: Mapping[str, Any], allowed: set[str], key: str, file: str) -> None:
-    for k in table:
-        if k not in allowed:
-            raise ConfigError(
-                f"unknown key {k!r}; expected one of {', '.join(sorted(allowed))}", file=file, key=f"{key}.{k}"
-            )
+    if not isinstance(table, Mapping):
+        raise ConfigError(f"expected a table, found {table!r}", file=file, key=key or None)
+    check_keys(table, allowed, file=file, key=key)
+
+
+def _offset(value: Any, file: str, key: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ConfigError(f"expected a finite number, found {value!r}", file=file, key=key)
+    return float(value)
 
 
 def _sign(value: Any, file: str, key: str) -> float:
@@ -173,7 +180,13 @@ def _channel(t: Any, expect: str, file: str, key: str) -> Channel:
     _only(t, {"var", "unit", "sign", "offset", "values"}, key, file)
     values = None
     if "values" in t:
-        if expect != "lever" or not isinstance(t["values"], list) or len(t["values"]) != 3:
+        codes = t["values"]
+        if (
+            expect != "lever"
+            or not isinstance(codes, list)
+            or len(codes) != 3
+            or not all(isinstance(v, int) and not isinstance(v, bool) for v in codes)
+        ):
             raise ConfigError("'values' lists the FMU codes of lever positions 0, 1, 2", file=file, key=f"{key}.values")
         values = tuple(int(v) for v in t["values"])
     unit = t.get("unit")
@@ -182,7 +195,7 @@ def _channel(t: Any, expect: str, file: str, key: str) -> Channel:
         unit=None if unit is None else str(unit),
         k=_unit_factor(unit, expect, file, f"{key}.unit") if expect != "lever" else 1.0,
         sign=_sign(t.get("sign", 1), file, f"{key}.sign"),
-        offset=float(t.get("offset", 0.0)),
+        offset=_offset(t.get("offset", 0.0), file, f"{key}.offset"),
         values=values,
     )
 
@@ -206,16 +219,9 @@ def _vector(t: Any, expect: str, frame: str, file: str, key: str) -> VectorChann
 
 def load_mapping(path: str | Path) -> PlantMapping:
     """Read and check a mapping file."""
-    import tomllib
-
     path = Path(path)
     file = str(path)
-    try:
-        doc = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise ConfigError("mapping file not found", file=file) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"not valid TOML: {exc}", file=file) from None
+    doc = read_toml(path, what="mapping file")
     _only(doc, {"mapping", "outputs", "inputs"}, "", file)
     meta = doc.get("mapping", {})
     _only(meta, {"body_frame", "description"}, "mapping", file)

@@ -20,6 +20,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from bench.config.bounds import bounded_quantity, check
+from bench.config.table import check_keys
 from bench.errors import ConfigError
 from bench.plant.driver import parse_commands
 from bench.plant.mapping import load_mapping
@@ -46,10 +48,7 @@ def plant_setup(doc: Mapping[str, Any], *, file: str, base: Path) -> PlantSetup:
     plant = doc.get("plant")
     if not isinstance(plant, Mapping):
         raise ConfigError("expected a [plant] table", file=file, key="plant")
-    for k in plant:
-        if k not in PLANT_KEYS:
-            raise ConfigError(f"unknown key {k!r}; expected one of {', '.join(sorted(PLANT_KEYS))}", file=file,
-                              key=f"plant.{k}")
+    check_keys(plant, PLANT_KEYS, file=file, key="plant")
     vehicle = load_vehicle(str(plant["vehicle"]), base) if "vehicle" in plant else None
     fmu_ref = plant.get("fmu") or (vehicle.fmu if vehicle else None)
     if fmu_ref is None:
@@ -64,13 +63,16 @@ def plant_setup(doc: Mapping[str, Any], *, file: str, base: Path) -> PlantSetup:
     mapping = load_mapping(mapping_path)
     if "duration" not in plant:
         raise ConfigError("missing field", file=file, key="plant.duration")
-    duration = quantity(plant["duration"], "time", "s", file=file, key="plant.duration")
+    duration = bounded_quantity(plant["duration"], "time", "s", "duration", file=file, key="plant.duration")
     step = quantity(plant.get("step", "1 ms"), "time", "s", file=file, key="plant.step")
-    sample = quantity(plant.get("sample", "10 ms"), "time", "s", file=file, key="plant.sample")
-    rate = quantity(plant.get("command_rate", "100 Hz"), "frequency", "Hz", file=file, key="plant.command_rate")
+    sample = bounded_quantity(plant.get("sample", "10 ms"), "time", "s", "duration", file=file, key="plant.sample")
+    rate = bounded_quantity(plant.get("command_rate", "100 Hz"), "frequency", "Hz", "rate", file=file,
+                            key="plant.command_rate")
     if not 0.0 < step <= 0.1:
         raise ConfigError(f"expected a communication step within (0, 100 ms], found {plant.get('step')!r}", file=file,
                           key="plant.step")
+    check("points", round(duration / step), file=file, key="plant.duration",
+          shown=f"{round(duration / step)} steps ({duration:g} s / {step:g} s)")
     decimate = round(sample / step)
     if decimate < 1 or abs(decimate * step - sample) > 1e-9:
         raise ConfigError("the sample spacing must be a whole number of communication steps", file=file,

@@ -17,11 +17,13 @@ surface, the tunable parameters of that ground::
 
 from __future__ import annotations
 
-import tomllib
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from bench.config.files import read_toml
+from bench.config.table import check_keys
 from bench.errors import ConfigError
 from bench.paths import fmu_dir, models_dir
 from bench.units import parse_unit
@@ -44,20 +46,24 @@ class Vehicle:
 
 
 def parameter_value(value: Any, *, file: str, key: str) -> float:
-    """A number as is (the FMU's unit), or ``"<number> <unit>"`` converted to SI."""
+    """A finite number as is (the FMU's unit), or ``"<number> <unit>"`` converted to SI."""
     if isinstance(value, bool):
         raise ConfigError(f"expected a number, found {value!r}", file=file, key=key)
     if isinstance(value, (int, float)):
-        return float(value)
-    if isinstance(value, str):
+        x = float(value)
+    elif isinstance(value, str):
         parts = value.strip().split(None, 1)
         try:
             number = float(parts[0])
             scale = parse_unit(parts[1])[0] if len(parts) > 1 else 1.0
         except Exception:
             raise ConfigError(f"expected a number with an optional unit, found {value!r}", file=file, key=key) from None
-        return number * scale
-    raise ConfigError(f"expected a number, found {value!r}", file=file, key=key)
+        x = number * scale
+    else:
+        raise ConfigError(f"expected a number, found {value!r}", file=file, key=key)
+    if not math.isfinite(x):
+        raise ConfigError(f"expected a finite number, found {value!r}", file=file, key=key)
+    return x
 
 
 def resolve_fmu(ref: str, base: Path | None = None) -> Path:
@@ -81,15 +87,8 @@ def load_vehicle(ref: str, base: Path | None = None) -> Vehicle:
     elif not p.is_absolute() and base is not None and (base / p).exists():
         p = base / p
     file = str(p)
-    try:
-        doc = tomllib.loads(p.read_text())
-    except FileNotFoundError:
-        raise ConfigError("vehicle file not found", file=file) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"not valid TOML: {exc}", file=file) from None
-    for k in doc:
-        if k not in ("vehicle", "parameters", "surface"):
-            raise ConfigError(f"unknown table {k!r}; expected vehicle, parameters, surface", file=file, key=k)
+    doc = read_toml(p, what="vehicle file")
+    check_keys(doc, ("vehicle", "parameters", "surface"), file=file, noun="table")
     meta = doc.get("vehicle", {})
     for k in ("fmu", "mapping"):
         if k not in meta:

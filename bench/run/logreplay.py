@@ -89,12 +89,9 @@ class FieldLogs:
 
 
 def _read_bytes(path: Path, what: str) -> bytes:
-    try:
-        return path.read_bytes()
-    except FileNotFoundError:
-        raise ConfigError(f"{what} not found", file=str(path)) from None
-    except OSError as exc:
-        raise ConfigError(f"cannot read {what}: {exc}", file=str(path)) from None
+    from bench.config.files import read_bytes  # a regular file of at most 1 GiB
+
+    return read_bytes(path, what=what)
 
 
 class LogReplay(TrafficProvider):

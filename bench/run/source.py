@@ -18,6 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from bench.config.bounds import bounded_quantity
+from bench.config.table import check_keys
 from bench.errors import ConfigError
 from bench.faults.motion import with_motion_faults
 from bench.faults.schedule import FAULT_JSON_SCHEMA, FAULT_TOPIC, FaultSchedule
@@ -32,7 +34,6 @@ from bench.sensors.imu.grade import ImuGrade, load_grade
 from bench.sensors.imu.model import LaserImu
 from bench.sensors.suite import SensorSuite, build_suite
 from bench.topics import TopicSpec
-from bench.units import quantity
 
 __all__ = ["RunSource", "SourceStats", "imu_settings", "time_grid", "SEGMENTS_TOPIC"]
 
@@ -45,14 +46,12 @@ def imu_settings(
     """IMU grade and rate from an ``[imu]`` table (``grade``, ``rate``), overridden by the
     explicit arguments; defaults: the navigation grade at 200 Hz."""
     table = table or {}
-    for k in table:
-        if k not in ("grade", "rate"):
-            raise ConfigError(f"unknown key {k!r}; expected grade, rate", file=file, key=f"imu.{k}")
+    check_keys(table, ("grade", "rate"), file=file, key="imu")
     g = load_grade(grade or table.get("grade", "navigation"))
     rate = (
         float(rate_hz)
         if rate_hz is not None
-        else quantity(table.get("rate", 200.0), "frequency", "Hz", file=file, key="imu.rate")
+        else bounded_quantity(table.get("rate", 200.0), "frequency", "Hz", "imu_rate", file=file, key="imu.rate")
     )
     if not 1.0 <= rate <= 1000.0 or abs(1e9 / rate - round(1e9 / rate)) > 1e-6:
         raise ConfigError(

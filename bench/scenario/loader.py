@@ -1,22 +1,30 @@
 """Scenario files: a motion script (``[[segment]]``) or a recorded track (``[track]``).
 
-``load_scenario("S000")`` finds ``test_cases/scenarios/S000*.toml``; a path is read as is.
+``load_scenario("S000")`` finds ``test_cases/scenarios/S000*.toml``; a path is read as is
+(a regular file of at most 64 MiB, :mod:`bench.config.files`). Loading checks what can be
+checked without building the motion: the tables and keys, and that a motion script stays
+bounded (``repeat`` counts, at most 100,000 segments after repeats, declared durations
+within 30 days), so a runaway script is refused before any synthesis.
 """
 
 from __future__ import annotations
 
-import tomllib
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from bench.config import files
+from bench.config.bounds import bounded_quantity, check
+from bench.config.table import check_keys
 from bench.errors import ConfigError
 from bench.paths import test_cases_dir
 from bench.scenario.motion import GNSS_FLAGS, SURFACES, build_profile
+from bench.scenario.script_values import check_script_size
 from bench.scenario.trajectory import SegmentInfo, Trajectory
 from bench.units import quantity
 
-__all__ = ["Scenario", "load_scenario", "find_scenario", "read_toml"]
+__all__ = ["Scenario", "load_scenario", "find_scenario", "read_toml", "check_script_size"]
 
 _TOP_KEYS = {
     "scenario",
@@ -42,14 +50,8 @@ _SCENARIO_KEYS = {"id", "title", "reference", "description", "start_utc", "assum
 
 
 def read_toml(path: Path) -> dict[str, Any]:
-    """Parse a TOML file; syntax errors name the file and the line."""
-    try:
-        with path.open("rb") as fh:
-            return tomllib.load(fh)
-    except FileNotFoundError:
-        raise ConfigError("file not found", file=str(path)) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"not valid TOML: {exc}", file=str(path)) from None
+    """Parse a TOML file (:func:`bench.config.files.read_toml`); errors name the file."""
+    return files.read_toml(path)
 
 
 @dataclass
@@ -66,7 +68,7 @@ class Scenario:
     def internal_rate_hz(self) -> float:
         """Rate of the truth's internal integration grid (``[truth] internal_rate``)."""
         value = self.doc.get("truth", {}).get("internal_rate", 1000.0)
-        rate = quantity(value, "frequency", "Hz", file=str(self.path), key="truth.internal_rate")
+        rate = bounded_quantity(value, "frequency", "Hz", "rate", file=str(self.path), key="truth.internal_rate")
         if rate < 1000.0:
             raise ConfigError(
                 f"expected at least 1000 Hz, found {value!r}", file=str(self.path), key="truth.internal_rate"
@@ -85,7 +87,7 @@ class Scenario:
 
     def text(self) -> str:
         """The file as written (to attach to recordings)."""
-        return self.path.read_text()
+        return files.read_text(self.path, what="scenario file")
 
 
 def find_scenario(name: str) -> Path:
@@ -108,29 +110,25 @@ def find_scenario(name: str) -> Path:
 def load_scenario(ref: str | Path) -> Scenario:
     """Load and check a scenario file given by path or id."""
     path = find_scenario(str(ref))
-    doc = read_toml(path)
-    for k in doc:
-        if k not in _TOP_KEYS:
-            raise ConfigError(
-                f"unknown table {k!r}; expected one of {', '.join(sorted(_TOP_KEYS))}", file=str(path), key=k
-            )
+    doc = files.read_toml(path, what="scenario file")
+    check_keys(doc, _TOP_KEYS, file=str(path), noun="table")
     meta = doc.get("scenario", {})
     if not isinstance(meta, dict) or "id" not in meta:
         raise ConfigError("expected a [scenario] table with an 'id'", file=str(path), key="scenario.id")
-    for k in meta:
-        if k not in _SCENARIO_KEYS:
-            raise ConfigError(
-                f"unknown key {k!r}; expected one of {', '.join(sorted(_SCENARIO_KEYS))}",
-                file=str(path),
-                key=f"scenario.{k}",
-            )
+    check_keys(meta, _SCENARIO_KEYS, file=str(path), key="scenario")
     if sum(k in doc for k in ("track", "segment", "plant")) != 1:
         raise ConfigError(
             "a scenario has exactly one of [[segment]] tables, a [track] table or a [plant] table",
             file=str(path),
             key="segment",
         )
-    return Scenario(id=str(meta["id"]), title=str(meta.get("title", "")), path=path, doc=doc, meta=meta)
+    sc = Scenario(id=str(meta["id"]), title=str(meta.get("title", "")), path=path, doc=doc, meta=meta)
+    if "segment" in doc:
+        truth = doc.get("truth", {})
+        if not isinstance(truth, Mapping):
+            raise ConfigError("expected a [truth] table", file=str(path), key="truth")
+        check_script_size(doc["segment"], file=str(path), rate_hz=sc.internal_rate_hz)
+    return sc
 
 
 def _track_trajectory(sc: Scenario) -> Trajectory:
@@ -138,20 +136,18 @@ def _track_trajectory(sc: Scenario) -> Trajectory:
 
     file = str(sc.path)
     t = sc.doc["track"]
+    if not isinstance(t, Mapping):
+        raise ConfigError("expected a [track] table", file=file, key="track")
     allowed = {"file", "format", "smoothing", "attitude_smoothing", "min_speed", "start", "end"}
-    for k in t:
-        if k not in allowed:
-            raise ConfigError(
-                f"unknown key {k!r}; expected one of {', '.join(sorted(allowed))}", file=file, key=f"track.{k}"
-            )
+    check_keys(t, allowed, file=file, key="track")
     if "file" not in t:
         raise ConfigError("missing field", file=file, key="track.file")
     src = Path(t["file"])
     if not src.is_absolute():
         src = (sc.path.parent / src).resolve()
     track = read_track(src, t.get("format", "csv"))
-    start = quantity(t["start"], "time", "s", file=file, key="track.start") if "start" in t else None
-    end = quantity(t["end"], "time", "s", file=file, key="track.end") if "end" in t else None
+    start = bounded_quantity(t["start"], "time", "s", "time", file=file, key="track.start") if "start" in t else None
+    end = bounded_quantity(t["end"], "time", "s", "time", file=file, key="track.end") if "end" in t else None
     track = track.cleaned().cropped(start, end)
     defaults = sc.doc.get("defaults", {})
     gnss = defaults.get("gnss", "open")
@@ -161,6 +157,7 @@ def _track_trajectory(sc: Scenario) -> Trajectory:
     if surface not in SURFACES:
         raise ConfigError(f"expected one of {SURFACES}, found {surface!r}", file=file, key="defaults.surface")
     duration = float(track.t[-1] - track.t[0]) if len(track.t) else 0.0
+    check("duration", duration, file=file, key="track.file", shown=f"{duration:g} s of track in {src}")
     return SampledTrajectory(
         track,
         smoothing=quantity(t.get("smoothing", 0.0), "length", "m", file=file, key="track.smoothing"),

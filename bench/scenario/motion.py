@@ -13,9 +13,10 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
+from bench.config.bounds import check
 from bench.errors import ConfigError
 from bench.scenario.profile import SMOOTHSTEP_PEAK_SLOPE, Channel, ProfileTrajectory
-from bench.scenario.script_values import Limits, _flag, _limits, _only, _opt, _table, parse_latlon
+from bench.scenario.script_values import Limits, _flag, _limits, _only, _opt, _table, check_script_size, parse_latlon
 from bench.scenario.trajectory import SegmentInfo
 from bench.units import G0, quantity
 
@@ -152,6 +153,7 @@ def build_profile(
     segments = doc.get("segment")
     if not isinstance(segments, list) or not segments:
         raise ConfigError("expected at least one [[segment]] table", file=file, key="segment")
+    check_script_size(segments, file=file)  # repeats, segment count and declared durations bounded
 
     b = _Builder(speed0, heading0, pitch0, roll0, file)
     infos: list[SegmentInfo] = []
@@ -172,6 +174,7 @@ def build_profile(
             start = b.t
             length = _segment(b, seg, kind, limits, key, file)
             b.t = start + length
+            check("duration", b.t, file=file, key=f"{key}.duration", shown=f"{b.t:g} s of motion up to {key}")
             infos.append(
                 SegmentInfo(
                     index=len(infos),
@@ -184,6 +187,8 @@ def build_profile(
                     params={k: v for k, v in seg.items() if k not in ("kind", "label")},
                 )
             )
+    points = math.ceil(b.t * internal_rate_hz) + 1  # the position grid, 48 bytes each
+    check("points", points, file=file, key="segment", shown=f"{points} ({b.t:g} s at {internal_rate_hz:g} Hz)")
     return ProfileTrajectory(
         lat0=lat0,
         lon0=lon0,

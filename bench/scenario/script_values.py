@@ -10,10 +10,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from bench.config.bounds import MAX_DURATION_S, bounded_quantity, check
+from bench.config.table import check_keys
 from bench.errors import ConfigError
 from bench.units import quantity
 
-__all__ = ["Limits", "parse_latlon"]
+__all__ = ["Limits", "parse_latlon", "check_script_size"]
 
 
 @dataclass
@@ -79,11 +81,7 @@ def _table(doc: Mapping[str, Any], name: str, file: str | None) -> Mapping[str, 
 
 
 def _only(table: Mapping[str, Any], allowed: set[str], key: str, file: str | None) -> None:
-    for k in table:
-        if k not in allowed:
-            raise ConfigError(
-                f"unknown key {k!r}; expected one of {', '.join(sorted(allowed))}", file=file, key=f"{key}.{k}"
-            )
+    check_keys(table, allowed, file=file, key=key)
 
 
 def _opt(seg: Mapping[str, Any], name: str, dim: str, unit: str, key: str, file: str | None) -> float | None:
@@ -114,3 +112,32 @@ def _limits(table: Mapping[str, Any], base: Limits, key: str, file: str | None) 
                 raise ConfigError(f"expected a positive limit, found {table[name]!r}", file=file, key=f"{key}.{name}")
             setattr(out, name, v)
     return out
+
+
+def check_script_size(segments: Any, *, file: str | None, rate_hz: float = 1000.0) -> None:
+    """Refuse a motion script that would not stay bounded: each ``repeat`` and the count of
+    segments after repeats within their bounds, the declared durations within 30 days and
+    within the truth grid at ``rate_hz`` (what cannot be known before the motion is built,
+    :func:`build_profile` checks as it goes)."""
+    if not isinstance(segments, list):
+        return  # build_profile says what is wrong
+    total_n, total_s = 0, 0.0
+    for i, seg in enumerate(segments):
+        if not isinstance(seg, Mapping):
+            continue
+        key = f"segment[{i}]"
+        repeat = seg.get("repeat", 1)
+        if isinstance(repeat, int) and not isinstance(repeat, bool) and repeat >= 1:
+            check("repeat", repeat, file=file, key=f"{key}.repeat")
+        else:
+            repeat = 1  # build_profile refuses it
+        total_n += repeat
+        check("segments", total_n, file=file, key=f"{key}.repeat", shown=f"{total_n} segments up to {key}")
+        if "duration" in seg:
+            d = bounded_quantity(seg["duration"], "time", "s", "duration", file=file, key=f"{key}.duration")
+            total_s += repeat * d
+            if total_s > MAX_DURATION_S:
+                check("duration", total_s, file=file, key=f"{key}.duration", shown=f"{total_s:g} s up to {key}")
+            points = math.ceil(total_s * rate_hz) + 1
+            check("points", points, file=file, key=f"{key}.duration",
+                  shown=f"{points} ({total_s:g} s up to {key} at {rate_hz:g} Hz)")

@@ -16,6 +16,7 @@ or ``t, x, y, z`` ECEF in metres).
 from __future__ import annotations
 
 import csv
+import io
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,6 +24,7 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline, make_splrep
 
+from bench.config.files import read_text
 from bench.errors import ConfigError
 from bench.nav import earth
 from bench.scenario.trajectory import Kinematics, SegmentInfo, Trajectory
@@ -71,13 +73,13 @@ def read_smartloc(path: str | Path) -> Track:
     """smartLoc ground truth: lines ``point3 t x y z ...`` (time in s, ECEF in m)."""
     path = Path(path)
     rows: list[list[float]] = []
-    with path.open() as fh:
+    with io.StringIO(read_text(path, what="track file")) as fh:
         for n, line in enumerate(fh, 1):
             parts = line.split()
             if not parts or parts[0] != "point3":
                 continue
             try:
-                rows.append([float(p) for p in parts[1:5]])
+                rows.append(_finite_row([float(p) for p in parts[1:5]], 4))
             except (ValueError, IndexError):
                 raise ConfigError(
                     f"line {n}: expected 'point3 t x y z', found {line.strip()[:60]!r}", file=str(path)
@@ -105,7 +107,7 @@ _COLS = {
 def read_csv_track(path: str | Path) -> Track:
     """CSV with a header row naming the columns (see module docstring)."""
     path = Path(path)
-    with path.open(newline="") as fh:
+    with io.StringIO(read_text(path, what="track file"), newline="") as fh:
         reader = csv.reader(fh)
         try:
             header = [h.strip().lower() for h in next(reader)]
@@ -127,9 +129,9 @@ def read_csv_track(path: str | Path) -> Track:
             if not row or row[0].lstrip().startswith("#"):
                 continue
             try:
-                data.append([float(v) for v in row])
+                data.append(_finite_row([float(v) for v in row], len(header)))
             except ValueError:
-                raise ConfigError(f"line {n}: expected numbers, found {row!r}", file=str(path)) from None
+                raise ConfigError(f"line {n}: expected finite numbers, found {row!r}", file=str(path)) from None
     a = np.array(data)
     if a.ndim != 2 or len(a) < 6:
         raise ConfigError(f"expected at least 6 rows, found {len(a)}", file=str(path))
@@ -141,6 +143,13 @@ def read_csv_track(path: str | Path) -> Track:
     if all(k in idx for k in ("heading", "pitch", "roll")):
         euler = np.radians(a[:, [idx["heading"], idx["pitch"], idx["roll"]]])
     return Track(a[:, idx["t"]], xyz, euler, str(path))
+
+
+def _finite_row(values: list[float], n: int) -> list[float]:
+    """The row if it holds ``n`` finite numbers (ValueError otherwise: ``nan``, ``inf``)."""
+    if len(values) < n or not all(math.isfinite(v) for v in values):
+        raise ValueError("not finite")
+    return values
 
 
 def read_track(path: str | Path, fmt: str) -> Track:

@@ -11,7 +11,6 @@ keys; :func:`resolve` reads both, checks every key and returns SI values.
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +18,9 @@ from typing import Any
 
 import numpy as np
 
+from bench.config.bounds import check
+from bench.config.files import read_toml
+from bench.config.table import unknown_key
 from bench.errors import ConfigError
 from bench.paths import models_dir
 from bench.units import DIMENSIONS, quantity, vector
@@ -36,7 +38,8 @@ class Param:
     ``dimension`` is a :data:`bench.units.DIMENSIONS` name, or ``"integer"``, ``"number"``
     (a plain float), ``"boolean"``, ``"text"`` (one of ``choices`` when given) or
     ``"text_list"``. ``n`` > 1 makes it a vector (one value for all, or a list of n).
-    ``lo``/``hi`` bound the SI value (inclusive).
+    ``lo``/``hi`` bound the SI value (inclusive); rates and times are also held to the
+    bench-wide ``rate`` and ``offset`` bounds (:mod:`bench.config.bounds`).
     """
 
     dimension: str
@@ -57,6 +60,10 @@ def _check_range(value: Any, p: Param, file: str | None, key: str) -> None:
         raise ConfigError(f"expected a value >= {p.lo:g} (SI), found {value!r}", file=file, key=key)
     if p.hi is not None and np.any(arr > p.hi):
         raise ConfigError(f"expected a value <= {p.hi:g} (SI), found {value!r}", file=file, key=key)
+    kind = {"frequency": "rate", "time": "offset"}.get(p.dimension)
+    if kind is not None:
+        for x in arr:
+            check(kind, float(x), file=file, key=key, shown=value)
 
 
 def _one(value: Any, p: Param, file: str | None, key: str) -> Any:
@@ -106,8 +113,7 @@ def parse_params(
         if k in allow:
             continue
         if k not in specs:
-            known = ", ".join(sorted([*specs, *allow]))
-            raise ConfigError(f"unknown key {k!r}; expected one of {known}", file=file, key=f"{where}.{k}")
+            raise unknown_key(k, [*specs, *allow], file=file, key=where)
         out[k] = _one(v, specs[k], file, f"{where}.{k}")
     return out
 
@@ -182,10 +188,7 @@ def resolve(
         if not isinstance(ref, str):
             raise ConfigError(f"expected a parameter-set name, found {ref!r}", file=file, key=f"{where}.model")
         model_path = find_model(kind, ref, file=file, key=f"{where}.model")
-        try:
-            doc = tomllib.loads(model_path.read_text())
-        except tomllib.TOMLDecodeError as exc:
-            raise ConfigError(f"not valid TOML: {exc}", file=str(model_path)) from None
+        doc = read_toml(model_path, what="parameter set")
         model_name = str(doc.get("name", model_path.stem))
         values.update(parse_params(doc, specs, file=str(model_path), where=kind, allow=_META_KEYS))
     values.update(parse_params(table, specs, file=file, where=where, allow=("model", *allow)))

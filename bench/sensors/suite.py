@@ -23,10 +23,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from bench.config.files import read_toml
+from bench.config.table import check_keys
 from bench.errors import ConfigError
 from bench.faults.schedule import FaultSchedule, FaultWindow, parse_schedule
 from bench.faults.sensor import windows_for
-from bench.scenario.loader import read_toml
 from bench.sensors.base import SensorModel
 from bench.sensors.bds import BDS_PARAMS, BdsReceiver
 from bench.sensors.doppler import DOPPLER_PARAMS, DopplerRadar
@@ -62,10 +63,8 @@ def fault_schedule(
     windows: list[FaultWindow] = list(parse_schedule(doc.get("fault"), file=file))
     for path in extra:
         p = Path(path)
-        fdoc = read_toml(p)
-        for k in fdoc:
-            if k not in ("fault", "description", "reference"):
-                raise ConfigError(f"unknown key {k!r}; expected [[fault]] tables", file=str(p), key=k)
+        fdoc = read_toml(p, what="fault file")
+        check_keys(fdoc, ("fault", "description", "reference"), file=str(p))
         if "fault" not in fdoc:
             raise ConfigError("expected [[fault]] tables", file=str(p), key="fault")
         windows += list(parse_schedule(fdoc["fault"], file=str(p), first_id=len(windows)))

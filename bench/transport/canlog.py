@@ -28,6 +28,7 @@ from pathlib import Path
 import can
 import numpy as np
 
+from bench.config.files import LOG_LIMIT, regular_file
 from bench.errors import ConfigError
 from bench.frames import CanBatch
 
@@ -85,9 +86,7 @@ def read_can_log_file(path: str | Path) -> CanLog:
         Naming the file, when it is missing, not a log python-can reads, malformed, or
         holds no data frame.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise ConfigError("CAN log not found", file=str(path))
+    path = regular_file(path, what="CAN log", limit=LOG_LIMIT)
     asc = path.suffix.lower() == ".asc"
     if asc:
         with path.open("rb") as fh:

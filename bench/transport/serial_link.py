@@ -30,6 +30,8 @@ from typing import Any
 
 import serial
 
+from bench.config.bounds import check
+from bench.config.table import check_keys
 from bench.errors import ConfigError, LinkError
 from bench.frames import SerialBatch, SerialChunk
 from bench.transport.pacing import parse_framing
@@ -60,14 +62,17 @@ class SerialConfig:
     def from_mapping(cls, table: Mapping[str, Any], *, file: str | None = None, key: str = "serial") -> SerialConfig:
         """A config from a TOML table (keys port, baudrate, framing, write_timeout)."""
         allowed = {"port", "baudrate", "framing", "write_timeout"}
-        for name in table:
-            if name not in allowed:
-                raise ConfigError(
-                    f"unknown key; expected one of {', '.join(sorted(allowed))}", file=file, key=f"{key}.{name}"
-                )
+        check_keys(table, allowed, file=file, key=key)
         cfg = cls(**table)
-        if not isinstance(cfg.baudrate, int) or cfg.baudrate <= 0:
+        if not isinstance(cfg.port, str):
+            raise ConfigError(f"expected a port name, found {cfg.port!r}", file=file, key=f"{key}.port")
+        if not isinstance(cfg.baudrate, int) or isinstance(cfg.baudrate, bool) or cfg.baudrate <= 0:
             raise ConfigError(f"expected a positive integer, found {cfg.baudrate!r}", file=file, key=f"{key}.baudrate")
+        check("baud", cfg.baudrate, file=file, key=f"{key}.baudrate")
+        w = cfg.write_timeout
+        if isinstance(w, bool) or not isinstance(w, (int, float)):
+            raise ConfigError(f"expected a number of seconds, found {w!r}", file=file, key=f"{key}.write_timeout")
+        check("timeout", float(w), file=file, key=f"{key}.write_timeout", shown=w)
         try:
             parse_framing(cfg.framing)
         except ValueError as exc:

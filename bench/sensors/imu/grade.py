@@ -7,7 +7,6 @@ See ``docs/imu_model.md`` for every key, its unit and its default.
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,6 +14,8 @@ from typing import Any
 
 import numpy as np
 
+from bench.config.files import read_toml
+from bench.config.table import check_keys
 from bench.errors import ConfigError
 from bench.paths import models_dir
 from bench.units import quantity, vector
@@ -115,13 +116,9 @@ class ImuGrade:
 
 def _triad(table: Mapping[str, Any], keys: dict[str, tuple[str, str, Any]], where: str, file: str) -> TriadErrors:
     out = TriadErrors()
-    for k in table:
-        if k not in keys and k not in _DRAW_KEYS:
-            raise ConfigError(
-                f"unknown key {k!r}; expected one of {', '.join(sorted([*keys, *_DRAW_KEYS]))}",
-                file=file,
-                key=f"{where}.{k}",
-            )
+    if not isinstance(table, Mapping):
+        raise ConfigError(f"expected a [{where}] table, found {table!r}", file=file, key=where)
+    check_keys(table, [*keys, *_DRAW_KEYS], file=file, key=where)
     for k in _DRAW_KEYS:
         if k in table:
             if table[k] not in ("fixed", "random"):
@@ -178,17 +175,8 @@ def load_grade(ref: str | Path) -> ImuGrade:
     """Read an IMU grade from a TOML file (path or name in ``models/imu/``)."""
     path = find_grade(str(ref))
     file = str(path)
-    try:
-        doc = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise ConfigError("file not found", file=file) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"not valid TOML: {exc}", file=file) from None
-    for k in doc:
-        if k not in ("name", "description", "source", "temperature", "gyro", "accel"):
-            raise ConfigError(
-                f"unknown key {k!r}; expected name, description, source, temperature, gyro, accel", file=file, key=k
-            )
+    doc = read_toml(path, what="IMU grade file")
+    check_keys(doc, ("name", "description", "source", "temperature", "gyro", "accel"), file=file)
     temperature = doc.get("temperature", 25.0)
     if not isinstance(temperature, (int, float)) or isinstance(temperature, bool) or not math.isfinite(temperature):
         raise ConfigError(f"expected degrees Celsius as a number, found {temperature!r}", file=file, key="temperature")

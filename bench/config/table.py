@@ -1,23 +1,29 @@
 """Reading TOML tables strictly: every error names the file, the key and what was expected.
 
 :class:`Table` wraps one parsed table. Each getter checks the type (and unit, choices,
-range) of one key and remembers it was read; :meth:`Table.finish` then refuses any key
-nobody read, listing the ones allowed. Messages look like::
+finiteness, bound) of one key and remembers it was read; :meth:`Table.finish` then refuses
+any key nobody read, listing the ones allowed. Numbers are finite (TOML's ``nan`` and
+``inf`` are refused, and so is ``"1e400 m"``); ``bound=`` names a kind of
+:data:`bench.config.bounds.BOUNDS`. Loaders that walk raw tables use :func:`check_keys`
+for the same unknown-key message. Messages look like::
 
     test_cases/S000.toml: criterion[2].at_most: expected length such as '1 m', found '3 m/s' (velocity)
+    test_cases/S000.toml: run.monte_carlo: expected a number of runs <= 10000, found 1000000000
 """
 
 from __future__ import annotations
 
 import datetime as _dt
+import math
 import re
-from collections.abc import Iterable, Mapping
+from collections.abc import Collection, Iterable, Mapping
 from typing import Any
 
+from bench.config.bounds import check
 from bench.errors import ConfigError
 from bench.units import quantity
 
-__all__ = ["Table", "type_name"]
+__all__ = ["Table", "type_name", "check_keys", "unknown_key"]
 
 
 def type_name(value: Any) -> str:
@@ -37,6 +43,27 @@ def type_name(value: Any) -> str:
     if isinstance(value, (_dt.date, _dt.time)):
         return "a date/time"
     return type(value).__name__
+
+
+def unknown_key(
+    name: Any, allowed: Iterable[str], *, file: str | None, key: str = "", noun: str = "key"
+) -> ConfigError:
+    """The error of an unknown key ``name`` in the table at ``key``, listing ``allowed``."""
+    listed = ", ".join(sorted(allowed)) or "none"
+    where = f"{key}.{name}" if key else str(name)
+    return ConfigError(f"unknown {noun} {name!r}; expected one of: {listed}", file=file, key=where)
+
+
+def check_keys(
+    data: Mapping[str, Any], allowed: Collection[str], *, file: str | None, key: str = "", noun: str = "key"
+) -> None:
+    """Refuse the first key of ``data`` not in ``allowed`` (the message lists them), or
+    ``data`` itself when it is not a table."""
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"expected a table, found {data!r} ({type_name(data)})", file=file, key=key or None)
+    for name in data:
+        if name not in allowed:
+            raise unknown_key(name, allowed, file=file, key=key, noun=noun)
 
 
 class Table:
@@ -70,10 +97,13 @@ class Table:
 
     def finish(self) -> None:
         """Refuse keys that were never read."""
-        unknown = [k for k in self.data if k not in self._used]
-        if unknown:
-            allowed = ", ".join(sorted(self._used)) or "none"
-            raise self.error(unknown[0], f"unknown key {unknown[0]!r}; expected one of: {allowed}")
+        check_keys(self.data, self._used, file=self.file, key=self.key)
+
+    def bounded(self, name: str, kind: str | None, value: float, shown: Any) -> float:
+        """``value`` checked against the bound ``kind`` (None: no bound)."""
+        if kind is None:
+            return value
+        return check(kind, value, file=self.file, key=self.path(name), shown=shown)
 
     # -- typed getters ------------------------------------------------------------------
     def str(
@@ -101,25 +131,48 @@ class Table:
         return v
 
     def int(
-        self, name: str, default: int | None = None, *, required: bool = False, minimum: int | None = None
+        self,
+        name: str,
+        default: int | None = None,
+        *,
+        required: bool = False,
+        minimum: int | None = None,
+        maximum: int | None = None,
+        bound: str | None = None,
     ) -> int | None:
-        expect = "an integer" + (f" >= {minimum}" if minimum is not None else "")
+        bounds = [f">= {minimum}" if minimum is not None else "", f"<= {maximum}" if maximum is not None else ""]
+        expect = " ".join(["an integer", " and ".join(b for b in bounds if b)]).strip()
         v = self.raw(name, default, required=required, expect=expect)
         if v is None:
             return None
         if not isinstance(v, int) or isinstance(v, bool):
             raise self.error(name, f"expected {expect}, found {v!r} ({type_name(v)})")
-        if minimum is not None and v < minimum:
+        if (minimum is not None and v < minimum) or (maximum is not None and v > maximum):
             raise self.error(name, f"expected {expect}, found {v}")
+        self.bounded(name, bound, v, v)
         return v
 
-    def number(self, name: str, default: float | None = None, *, required: bool = False) -> float | None:
+    def number(
+        self,
+        name: str,
+        default: float | None = None,
+        *,
+        required: bool = False,
+        bound: str | None = None,
+    ) -> float | None:
+        """A finite number (an integer is taken as a float), optionally bounded."""
         v = self.raw(name, default, required=required, expect="a number")
         if v is None:
             return None
         if not isinstance(v, (int, float)) or isinstance(v, bool):
             raise self.error(name, f"expected a number, found {v!r} ({type_name(v)})")
-        return float(v)
+        try:
+            x = float(v)
+        except OverflowError:  # an integer beyond any float
+            x = math.inf
+        if not math.isfinite(x):
+            raise self.error(name, f"expected a finite number, found {v!r}")
+        return self.bounded(name, bound, x, v)
 
     def bool(self, name: str, default: bool | None = None, *, required: bool = False) -> bool | None:
         v = self.raw(name, default, required=required, expect="true or false")
@@ -150,7 +203,9 @@ class Table:
         required: bool = False,
         positive: bool = False,
         nonnegative: bool = False,
+        bound: str | None = None,
     ) -> float | None:
+        """A finite quantity in SI (see :func:`bench.units.quantity`), optionally bounded."""
         v = self.raw(name, default, required=required, expect=f"{dimension} such as '1 {unit}'")
         if v is None:
             return None
@@ -159,10 +214,22 @@ class Table:
             raise self.error(name, f"expected a positive {dimension}, found {v!r}")
         if nonnegative and x < 0.0:
             raise self.error(name, f"expected a non-negative {dimension}, found {v!r}")
-        return x
+        return self.bounded(name, bound, x, v)
 
-    def time_ns(self, name: str, default: Any = None, *, required: bool = False, positive: bool = False) -> int | None:
-        x = self.quantity(name, "time", "s", default, required=required, positive=positive, nonnegative=True)
+    def time_ns(
+        self,
+        name: str,
+        default: Any = None,
+        *,
+        required: bool = False,
+        positive: bool = False,
+        bound: str | None = None,
+    ) -> int | None:
+        """A time in integer ns, bounded (default: ``duration`` if positive, else ``time``)."""
+        kind = bound or ("duration" if positive else "time")
+        x = self.quantity(
+            name, "time", "s", default, required=required, positive=positive, nonnegative=True, bound=kind
+        )
         return None if x is None else round(x * 1e9)
 
     def table(self, name: str, *, required: bool = False) -> Table | None:
