@@ -25,8 +25,11 @@ is a non-negative weighted least-squares fit; a point's weight is the inverse of
 relative uncertainty, from the number of independent clusters ``N / m`` behind it.
 
 A term is *resolved* when it dominates the fitted curve (the largest share of the
-variance) over at least half a decade (a factor 3) of well-determined averaging times (at least
-``min_clusters`` clusters); its ``tau_range`` is where it does. An unresolved term gets
+variance) over at least half a decade (a factor 3) of well-determined averaging times (at
+least ``min_clusters`` clusters; a flicker floor: a decade, less is only the bend between
+two slopes); its ``tau_range`` is where it does. A rise (rate random walk, rate ramp) that
+runs to the end of the log counts only after a resolved bias instability: before one, it
+may be the rising side of a bias instability beyond the log. An unresolved term gets
 an upper bound instead: no term can exceed the measured curve (plus two sigma) at any
 averaging time. A Gauss-Markov bias instability counts only when the curve shows its
 peak; on its tails it is indistinguishable from random walks.
@@ -64,6 +67,7 @@ TERMS: dict[str, float] = {
 }
 _B = 2  # index of the bias instability
 _MIN_SPAN = 3.0  # a term dominating over less than half a decade of averaging time is not resolved
+_MIN_SPAN_FLOOR = 10.0  # a flicker floor over less than a decade is the bend between two slopes
 _MODEL_FLOOR = 0.02  # relative variance misfit tolerated at every point (model error)
 
 
@@ -150,7 +154,8 @@ class TermFit:
     random walk: per sqrt(s); bias instability: rate; rate random walk: rate per
     sqrt(s); rate ramp: rate per s). ``resolved`` says whether the curve shows it;
     ``tau_range`` is where it dominates the fit, ``bound`` the largest value the curve
-    allows (the figure to quote when it is not resolved).
+    allows (the figure to quote when it is not resolved), ``why`` what keeps a term that
+    dominates somewhere from counting as resolved.
     """
 
     name: str
@@ -158,6 +163,7 @@ class TermFit:
     resolved: bool
     tau_range: tuple[float, float] | None
     bound: float
+    why: str = ""
 
 
 @dataclass
@@ -307,9 +313,18 @@ def fit_noise_terms(
     terms = {}
     for j, n in enumerate(names):
         sel = (top == j) & well_mask & (c[j] > 0.0)
-        resolved = bool(sel.any()) and T[sel].max() >= _MIN_SPAN * T[sel].min()
-        rng = (float(T[sel].min()), float(T[sel].max())) if resolved else None
-        terms[n] = TermFit(n, float(math.sqrt(c[j])), resolved, rng, float(math.sqrt(bounds[j])))
+        rng = (float(T[sel].min()), float(T[sel].max())) if sel.any() else None
+        span = _MIN_SPAN_FLOOR if (n == "bias_instability" and best_tc is None) else _MIN_SPAN
+        why = ""
+        if rng is not None and rng[1] < span * rng[0]:
+            why = f"dominates only over {rng[0]:.3g}-{rng[1]:.3g} s"
+        elif rng is not None and n in ("rate_random_walk", "rate_ramp") and rng[1] >= well[-1] \
+                and not terms["bias_instability"].resolved:
+            why = (f"the rise from {rng[0]:.3g} s to the end of the log could also be the onset of a bias "
+                   "instability beyond it (no floor or peak before it)")
+        resolved = rng is not None and not why
+        terms[n] = TermFit(n, float(math.sqrt(c[j])), resolved, rng if resolved else None, float(math.sqrt(bounds[j])),
+                           why)
     pts = well_mask if well_mask.any() else np.ones(len(T), dtype=bool)
     rms = float(np.sqrt(np.mean((0.5 * np.log10(a[pts] / model[pts])) ** 2)))
     span_well = (float(well[0]), float(well[-1])) if len(well) else (math.nan, math.nan)

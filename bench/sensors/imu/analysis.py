@@ -144,6 +144,14 @@ class NoiseReport:
 
     def _summary(self) -> list[str]:
         out = []
+        for sensor in ("gyro", "accel"):
+            humped = [a for a in self.axes if a.sensor == sensor and a.humps]
+            if humped:
+                peaks = [h.tau_peak for a in humped for h in a.humps]
+                lo, hi = min(peaks), max(peaks)
+                where = f"{lo:.2g} s" if hi <= 1.5 * lo else f"{lo:.2g}-{hi:.2g} s"
+                axes = ", ".join(a.name for a in humped)
+                out.append(f"vibration or periodic motion peaking at {where} ({axes}): not a noise term, left out")
         if not self.static:
             out.append("the log is not static: every figure is withdrawn and only upper bounds remain "
                        "(motion adds variance that no sensor term owns)")
@@ -246,9 +254,8 @@ def _axis(sensor: str, ax: int, x: np.ndarray, dt: float, resolution: float | No
             "motion), not the pulses alone")
     for term in ("rate_random_walk", "rate_ramp"):
         t = fit.terms[term]
-        if rep.resolved[term] and t.tau_range and t.tau_range[1] >= fit.tau_well[1]:
-            rep.notes.append(f"the rise up to {fit.tau_well[1]:.3g} s taken as {term.replace('_', ' ')} could also "
-                             "be the onset of a bias instability beyond the log")
+        if t.why.startswith("the rise"):
+            rep.notes.append(f"{term.replace('_', ' ')} not resolved: {t.why}")
     return rep
 
 
