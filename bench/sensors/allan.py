@@ -67,6 +67,7 @@ TERMS: dict[str, float] = {
 }
 _B = 2  # index of the bias instability
 _MIN_SPAN = 3.0  # a term dominating over less than half a decade of averaging time is not resolved
+_FIRM_CLUSTERS = 50  # clusters of the points that must show a Gauss-Markov peak's fall
 _MIN_SPAN_FLOOR = 10.0  # a flicker floor over less than a decade is the bend between two slopes
 _MODEL_FLOOR = 0.02  # relative variance misfit tolerated at every point (model error)
 
@@ -230,19 +231,20 @@ def _solve(T: np.ndarray, a: np.ndarray, sig: np.ndarray, tau_c: float | None) -
     return unbiased if unbiased[0] <= 1.5 * robust[0] + 0.01 * len(T) else robust
 
 
-def _gm_shows(tau_c: float | None, c: np.ndarray, well: np.ndarray, exclude: Sequence[tuple[float, float]]) -> bool:
-    """A Gauss-Markov bias instability counts only where the curve shows its peak: fitted,
-    well-determined points a factor 3 to 6 away on both sides of it (where its ADEV has
-    fallen to about 0.8 of the peak), nothing left out within a factor 6, and the process
-    the largest term at the point nearest to it."""
+def _gm_shows(tau_c: float | None, c: np.ndarray, firm: np.ndarray, exclude: Sequence[tuple[float, float]]) -> bool:
+    """A Gauss-Markov bias instability counts only where the curve shows its peak: fitted
+    points a factor 3 to 6 away on both sides of it (where its ADEV has fallen to 0.8-0.6
+    of the peak) with enough clusters to see that fall (``firm``: 50, a 10 % ADEV
+    uncertainty), nothing left out within a factor 6, and the process the largest term
+    at the point nearest to it."""
     if tau_c is None or c[_B] == 0.0:
         return True
     tp = _GM_PEAK_AT * tau_c
     if any(lo <= 6.0 * tp and hi >= tp / 6.0 for lo, hi in exclude):
         return False
-    if not np.any((well >= tp / 6.0) & (well <= tp / 3.0)) or not np.any((well >= 3.0 * tp) & (well <= 6.0 * tp)):
+    if not np.any((firm >= tp / 6.0) & (firm <= tp / 3.0)) or not np.any((firm >= 3.0 * tp) & (firm <= 6.0 * tp)):
         return False
-    near = well[int(np.argmin(np.abs(np.log(well / tp))))]
+    near = firm[int(np.argmin(np.abs(np.log(firm / tp))))]
     return int(np.argmax(_basis(np.array([near]), tau_c)[0] * c)) == _B
 
 
@@ -283,10 +285,11 @@ def fit_noise_terms(
     sig = np.sqrt(2.0 / np.maximum(clusters - 1, 1) + _MODEL_FLOOR**2)
     well_mask = clusters >= min_clusters
     well = T[well_mask]
+    firm = T[clusters >= _FIRM_CLUSTERS]
 
     def chi2_of(tc: float | None) -> float:
         chi2, c = _solve(T, a, sig, tc)
-        return chi2 if _gm_shows(tc, c, well, exclude) else 1e300
+        return chi2 if _gm_shows(tc, c, firm, exclude) else 1e300
 
     if tau_c is not None:
         best_tc: float | None = float(tau_c)
