@@ -26,7 +26,7 @@ from bench.sensors.imu.logs import static_log
 
 RUNS = [
     ("navigation", 200.0, 1000.0),
-    ("navigation", 1.0, 1_500_000.0),
+    ("navigation", 1.0, 3_000_000.0),
     ("tactical", 200.0, 1000.0),
     ("tactical", 1.0, 500_000.0),
     ("mems", 200.0, 1000.0),

@@ -32,8 +32,8 @@ from bench.units import quantity
 
 __all__ = ["PLANT_KEYS", "plant_setup", "plant_trajectory"]
 
-PLANT_KEYS = {"vehicle", "fmu", "mapping", "sha256", "trust", "duration", "step", "sample", "command_rate",
-              "parameters"}
+PLANT_KEYS = {"vehicle", "fmu", "mapping", "sha256", "manifest", "duration", "step", "sample", "command_rate",
+              "parameters", "trust"}  # manifest: refused with the reason (see plant_setup)
 _TRUST = ("verified", "unverified")
 
 
@@ -49,9 +49,6 @@ def plant_setup(doc: Mapping[str, Any], *, file: str, base: Path) -> PlantSetup:
     plant = doc.get("plant")
     if not isinstance(plant, Mapping):
         raise ConfigError("expected a [plant] table", file=file, key="plant")
-    if "manifest" in plant:
-        raise ConfigError("a manifest file is not trusted (whoever can change the FMU can rewrite it); give the "
-                          "FMU's sha256 = \"<64 hex>\" in [plant] instead", file=file, key="plant.manifest")
     for k in plant:
         if k not in PLANT_KEYS:
             raise ConfigError(f"unknown key {k!r}; expected one of {', '.join(sorted(PLANT_KEYS))}", file=file,
@@ -94,6 +91,9 @@ def plant_setup(doc: Mapping[str, Any], *, file: str, base: Path) -> PlantSetup:
         doc.get("command"), duration, file=file, surface=defaults.get("surface", "asphalt"),
         gnss=defaults.get("gnss", "open"), rate_hz=rate,
     )
+    if "manifest" in plant:
+        raise ConfigError("a manifest file is not trusted (whoever can change the FMU can rewrite it); give the "
+                          "FMU's sha256 = \"<64 hex>\" in [plant] instead", file=file, key="plant.manifest")
     trust = plant.get("trust", "verified")
     if trust not in _TRUST:
         raise ConfigError(f"expected one of {', '.join(_TRUST)}, found {trust!r}", file=file, key="plant.trust")

@@ -74,7 +74,7 @@ def test_navigation_grade_at_200_hz_reads_pulses_and_random_walk_apart():
 
 # (grade, duration at 1 Hz): long enough that the fitted figures scatter by 3-4 % over
 # seeds (benchmarks/bench_allan.py), short enough for ~5-15 s per grade
-LONG = [("navigation", 1_500_000.0), ("tactical", 500_000.0), ("mems", 3_000_000.0)]
+LONG = [("navigation", 3_000_000.0), ("tactical", 500_000.0), ("mems", 3_000_000.0)]
 
 
 @pytest.mark.slow
