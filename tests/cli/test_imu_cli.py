@@ -31,6 +31,7 @@ def test_allan_of_the_real_laser_gyro_log(data_dir, tmp_path, capsys):
         block = _axis_block(out, f"gyro {ax}")
         assert "bias instability B           not resolved" in block
         assert re.search(r"rms log10 misfit \d\.\d{3}", block) and "fit over 0.01-" in block
+    assert re.search(r"vibration or periodic motion peaking at 0\.1\d?-0\.2\d? s \(gyro x, gyro y, gyro z\)", out)
     # the vehicle tilted (people aboard): the log is not static, figures become bounds
     assert "gravity direction turn as the gyros say" in out and "the log is not static" in out
     assert "gyro bias instability: not resolvable in 600 s" in out
