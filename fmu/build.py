@@ -9,8 +9,10 @@ For each model folder under ``fmu/models/`` (``model.toml`` + C source):
    compiler into a shared library;
 3. package ``<Identifier>.fmu`` (FMI 3.0) and ``<Identifier>_fmi2.fmu`` (FMI 2.0) with the
    binary, the sources and the model description;
-4. write ``SHA256SUMS`` (``sha256sum`` format) of the built FMUs: the bench's plant runner
-   loads an FMU's native code only when its hash is listed there.
+4. write ``SHA256SUMS`` (``sha256sum`` format) of the FMUs this build made (those of this
+   run, and those of earlier runs whose files still have the hash listed then; any other
+   file in the folder is not listed): the bench's plant runner loads an FMU's native code
+   only when ``fmu/build/SHA256SUMS`` lists its hash, or the scenario gives it.
 
 Usage: ``python fmu/build.py [--out fmu/build] [--model DIR ...] [--fmi 3 2]``.
 Needs cmake and a C compiler; the FMI headers are taken from the installed fmpy.
@@ -208,9 +210,20 @@ def sha256(path: Path) -> str:
 
 
 def write_manifest(out: Path, fmus: list[Path]) -> Path:
-    """``SHA256SUMS`` beside the FMUs: one ``<hex>  <file name>`` line each."""
+    """``SHA256SUMS`` in ``out``: one ``<hex>  <file name>`` line for each FMU in ``fmus``
+    (the ones this build made), plus the entries of the previous manifest whose files
+    still match them (built earlier, untouched since). Nothing else is listed."""
     path = out / "SHA256SUMS"
-    path.write_text("".join(f"{sha256(p)}  {p.name}\n" for p in sorted(fmus)))
+    entries: dict[str, str] = {}
+    if path.is_file():
+        for line in path.read_text().splitlines():
+            parts = line.split()
+            if len(parts) == 2 and (out / parts[1]).is_file() and sha256(out / parts[1]) == parts[0]:
+                entries[parts[1]] = parts[0]
+    entries.update({p.name: sha256(p) for p in fmus})
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text("".join(f"{digest}  {name}\n" for name, digest in sorted(entries.items())))
+    tmp.replace(path)
     return path
 
 
@@ -225,8 +238,7 @@ def main(argv: list[str] | None = None) -> int:
     fmus: list[Path] = []
     for folder in folders:
         fmus += build_model(folder.resolve(), args.out.resolve(), args.fmi)
-    existing = {p.name: p for p in args.out.glob("*.fmu")}
-    manifest = write_manifest(args.out, list(existing.values()))
+    manifest = write_manifest(args.out, fmus)
     for p in fmus:
         print(f"built {p.relative_to(args.out.parent) if p.is_relative_to(args.out.parent) else p}")
     print(f"wrote {manifest}")

@@ -8,15 +8,20 @@ the FMU's ``DoStep`` and bulk ``GetReal``/``GetFloat64`` through the ctypes func
 fmpy has bound, with the output pointer aimed straight at rows of a numpy buffer, so a
 step costs two foreign calls and no Python object per variable.
 
-Callers check the FMU's SHA-256 against a manifest (:mod:`bench.plant.manifest`) before
-they open an instance: opening one runs the FMU's native code.
+Native code is loaded only from bytes whose SHA-256 is trusted (:mod:`bench.plant.manifest`):
+:class:`FmuInstance` and :func:`simulate` take the :class:`~bench.plant.manifest.FmuTrust`
+of a check, or check against the build's manifest themselves, then re-read the file and
+extract exactly the bytes they checked.
 """
 
 from __future__ import annotations
 
 import contextlib
 import ctypes
+import io
 import shutil
+import tempfile
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from bench.errors import PlantError
+from bench.plant.manifest import FmuTrust, trusted_bytes, verify_fmu
 
 __all__ = ["Variable", "FmuDescription", "read_description", "validate", "simulate", "FmuInstance"]
 
@@ -118,16 +124,39 @@ def validate(path: str | Path) -> list[str]:
     return list(validate_fmu(str(path)))
 
 
-def simulate(path: str | Path, stop_time: float, step: float, outputs: list[str] | None = None) -> np.ndarray:
-    """A run with ``fmpy.simulate_fmu`` (loads native code: check the hash first)."""
+def _extract_trusted(path: Path, trust: FmuTrust | None) -> str:
+    """A temporary folder holding the FMU's contents, unpacked from bytes checked against
+    ``trust`` (by default: the build's manifest)."""
+    trust = trust if trust is not None else verify_fmu(path)
+    if Path(trust.path).resolve() != Path(path).resolve():
+        raise PlantError(f"{path}: the trust given is for another file ({trust.path})")
+    data = trusted_bytes(trust)
+    folder = tempfile.mkdtemp(prefix="bench_fmu_")
+    try:
+        with zipfile.ZipFile(io.BytesIO(data)) as zf:
+            zf.extractall(folder)
+    except (zipfile.BadZipFile, OSError, ValueError) as exc:
+        shutil.rmtree(folder, ignore_errors=True)
+        raise PlantError(f"{path}: cannot unpack the FMU: {exc}") from None
+    return folder
+
+
+def simulate(
+    path: str | Path, stop_time: float, step: float, outputs: list[str] | None = None, *, trust: FmuTrust | None = None
+) -> np.ndarray:
+    """A run with ``fmpy.simulate_fmu`` of the trusted bytes of ``path`` (see the module
+    docstring)."""
     from fmpy import simulate_fmu
 
+    folder = _extract_trusted(Path(path), trust)
     try:
         return simulate_fmu(
-            str(path), stop_time=stop_time, output_interval=step, step_size=step, output=outputs, validate=True
+            folder, stop_time=stop_time, output_interval=step, step_size=step, output=outputs, validate=True
         )
     except Exception as exc:
         raise PlantError(f"{path}: simulation with fmpy failed: {exc}") from None
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 class FmuInstance:
@@ -139,17 +168,21 @@ class FmuInstance:
         The FMU's description (from :func:`read_description`).
     instance_name:
         Name passed to the FMU (shows in its log messages).
+    trust:
+        The FMU's checked SHA-256 (:func:`~bench.plant.manifest.verify_fmu`); without it
+        :meth:`open` checks the file against the build's manifest.
 
     Use as a context manager; :meth:`close` terminates and frees the instance and removes
     the extracted files, and may be called more than once.
     """
 
-    def __init__(self, desc: FmuDescription, instance_name: str = "bench"):
+    def __init__(self, desc: FmuDescription, instance_name: str = "bench", *, trust: FmuTrust | None = None):
         if not desc.co_simulation:
             raise PlantError(f"{desc.path}: not a co-simulation FMU (model exchange is not supported)")
         if desc.fmi_version not in ("2.0", "3.0"):
             raise PlantError(f"{desc.path}: FMI {desc.fmi_version} is not supported (2.0 or 3.0)")
         self.desc = desc
+        self.trust = trust
         self.log: list[str] = []
         self._name = instance_name
         self._dir: str | None = None
@@ -160,13 +193,11 @@ class FmuInstance:
 
     # -- life cycle --------------------------------------------------------------------
     def open(self, start_time: float = 0.0) -> FmuInstance:
-        """Extract, load and instantiate; the instance is then in initialization mode."""
-        from fmpy import extract
-
-        self._dir = extract(str(self.desc.path))
+        """Check, extract, load and instantiate; the instance is then in initialization mode."""
+        self._dir = _extract_trusted(self.desc.path, self.trust)
         v3 = self.desc.fmi_version == "3.0"
-        md_guid = self._guid()
         try:
+            md_guid = self._guid()
             if v3:
                 from fmpy.fmi3 import FMU3Slave, fmi3LogMessageCallback
 
@@ -220,7 +251,8 @@ class FmuInstance:
     def _guid(self) -> str:
         from fmpy import read_model_description
 
-        return read_model_description(str(self.desc.path), validate=False).guid
+        assert self._dir is not None
+        return read_model_description(self._dir, validate=False).guid
 
     def exit_initialization(self) -> None:
         """Leave initialization mode (parameters are fixed from here on)."""

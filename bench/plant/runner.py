@@ -1,7 +1,8 @@
 """The FMU plant runner: one instance, a fixed communication step, truth out.
 
-:func:`run_plant` checks the FMU's SHA-256 against its manifest (before any of its native
-code is loaded), reads its description, checks the mapping against its variables, sets
+:func:`run_plant` checks the FMU's SHA-256 against its trusted hash (the build's manifest
+or the scenario's ``sha256``; :mod:`bench.plant.manifest`) before any of its native code
+is loaded, reads its description, checks the mapping against its variables, sets
 the vehicle parameters and the surface, and steps the one instance over the whole drive.
 Driver commands are applied at their ticks; the mapped outputs of every step are
 streamed through :class:`~bench.plant.integrate.BodyIntegrator` into heading and WGS-84
@@ -23,7 +24,7 @@ from bench.plant.checks import mapping_problems
 from bench.plant.driver import DriverScript
 from bench.plant.fmi import FmuDescription, FmuInstance, read_description
 from bench.plant.integrate import BodyIntegrator
-from bench.plant.manifest import verify_fmu
+from bench.plant.manifest import FmuTrust, verify_fmu
 from bench.plant.mapping import PlantMapping
 
 __all__ = ["PlantSetup", "PlantRun", "run_plant"]
@@ -44,7 +45,9 @@ class PlantSetup:
     parameters: FMU parameters by name (FMU units).
     surfaces: surface name -> tunable FMU parameters for that ground.
     heading_parameter: FMU parameter that takes ``heading0`` (None: the FMU starts at its own).
-    sha256, manifest: what the FMU is checked against (see :func:`verify_fmu`).
+    sha256: the FMU's expected SHA-256 from the scenario (None: the build's manifest).
+    unverified: the user's explicit opt-in to an FMU with no trusted hash.
+    source: the file the plant set-up came from (named in trust messages and records).
     """
 
     fmu: Path
@@ -60,7 +63,8 @@ class PlantSetup:
     surfaces: dict[str, dict[str, float]] = field(default_factory=dict)
     heading_parameter: str | None = None
     sha256: str | None = None
-    manifest: Path | None = None
+    unverified: bool = False
+    source: str = ""
 
 
 @dataclass
@@ -74,6 +78,7 @@ class PlantRun:
     sha256: str
     description: FmuDescription
     log: list[str]
+    trust: FmuTrust | None = None
 
 
 def _step_index(t: float, h: float, what: str) -> int:
@@ -106,7 +111,7 @@ def run_plant(
     setup: PlantSetup, *, chunk: int = 8192, progress: Callable[[int, int], None] | None = None
 ) -> PlantRun:
     """Run the FMU over the script's duration; see the module docstring."""
-    digest = verify_fmu(setup.fmu, manifest=setup.manifest, sha256=setup.sha256)
+    trust = verify_fmu(setup.fmu, sha256=setup.sha256, where=setup.source, unverified=setup.unverified)
     desc = read_description(setup.fmu)
     problems = mapping_problems(desc, setup.mapping)
     if problems:
@@ -124,7 +129,7 @@ def run_plant(
     integ = BodyIntegrator(setup.lat0, setup.lon0, setup.h0, setup.heading0, h, setup.decimate)
     buffer = np.empty((chunk, len(out_names)))
     started = time.perf_counter()
-    inst = FmuInstance(desc)
+    inst = FmuInstance(desc, trust=trust)
     with inst.open():
         params = dict(setup.parameters)
         if setup.heading_parameter:
@@ -161,5 +166,5 @@ def run_plant(
         raise PlantError(f"{setup.fmu.name}: non-finite {', '.join(bad)} in the FMU's mapped outputs")
     return PlantRun(
         samples=samples, steps=n_steps, elapsed_s=time.perf_counter() - started, step_s=h,
-        sha256=digest, description=desc, log=log,
+        sha256=trust.sha256, description=desc, log=log, trust=trust,
     )

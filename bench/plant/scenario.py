@@ -8,7 +8,9 @@
     step = "1 ms"                     # communication step (default 1 ms)
     sample = "10 ms"                  # spacing of the truth's spline samples (default 10 ms)
     command_rate = "100 Hz"           # driver commands are sampled and held at this rate
-    # optional overrides: fmu, mapping, sha256, manifest, parameters = { name = value }
+    # optional overrides: fmu, mapping, parameters = { name = value }
+    # sha256 = "<64 hex>"             # the FMU's expected SHA-256 (default: fmu/build/SHA256SUMS)
+    # trust = "unverified"            # explicit opt-in to an FMU with no trusted hash (recorded)
 
 The start position and heading come from ``[initial]``, the default surface and sky
 view from ``[defaults]``. :func:`plant_trajectory` runs the plant and returns the truth.
@@ -33,7 +35,8 @@ from bench.units import quantity
 __all__ = ["PLANT_KEYS", "plant_setup", "plant_trajectory"]
 
 PLANT_KEYS = {"vehicle", "fmu", "mapping", "sha256", "manifest", "duration", "step", "sample", "command_rate",
-              "parameters"}
+              "parameters", "trust"}  # manifest: refused with the reason (see plant_setup)
+_TRUST = ("verified", "unverified")
 
 
 def _resolve(ref: str, base: Path) -> Path:
@@ -90,6 +93,17 @@ def plant_setup(doc: Mapping[str, Any], *, file: str, base: Path) -> PlantSetup:
         doc.get("command"), duration, file=file, surface=defaults.get("surface", "asphalt"),
         gnss=defaults.get("gnss", "open"), rate_hz=rate,
     )
+    if "manifest" in plant:
+        raise ConfigError("a manifest file is not trusted (whoever can change the FMU can rewrite it); give the "
+                          "FMU's sha256 = \"<64 hex>\" in [plant] instead", file=file, key="plant.manifest")
+    trust = plant.get("trust", "verified")
+    if trust not in _TRUST:
+        raise ConfigError(f"expected one of {', '.join(_TRUST)}, found {trust!r}", file=file, key="plant.trust")
+    sha256 = plant.get("sha256")
+    if sha256 is not None and not (isinstance(sha256, str) and len(sha256.strip()) == 64
+                                   and all(c in "0123456789abcdefABCDEF" for c in sha256.strip())):
+        raise ConfigError(f"expected the FMU's SHA-256 as 64 hex digits, found {sha256!r}", file=file,
+                          key="plant.sha256")
     params = dict(vehicle.parameters) if vehicle else {}
     for k, v in plant.get("parameters", {}).items():
         params[k] = parameter_value(v, file=file, key=f"plant.parameters.{k}")
@@ -97,8 +111,7 @@ def plant_setup(doc: Mapping[str, Any], *, file: str, base: Path) -> PlantSetup:
         fmu=fmu, mapping=mapping, script=script, lat0=lat0, lon0=lon0, h0=h0, heading0=heading0, step_s=step,
         decimate=decimate, parameters=params, surfaces=vehicle.surfaces if vehicle else {},
         heading_parameter=vehicle.heading_parameter if vehicle else None,
-        sha256=plant.get("sha256"),
-        manifest=_resolve(str(plant["manifest"]), base) if "manifest" in plant else None,
+        sha256=sha256, unverified=trust == "unverified", source=file,
     )
 
 

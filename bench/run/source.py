@@ -200,6 +200,7 @@ class RunSource:
                 "plant",
                 {
                     "fmu_sha256": plant.sha256,
+                    **(plant.trust.record() if getattr(plant, "trust", None) is not None else {}),
                     "model": str(getattr(desc, "model_name", "")),
                     "fmi_version": str(getattr(desc, "fmi_version", "")),
                     "steps": str(plant.steps),

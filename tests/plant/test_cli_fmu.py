@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import shutil
-
 from bench.cli.app import run
 from bench.paths import models_dir
+from bench.plant.manifest import sha256_file
 from tests.plant.conftest import DATA
 
 MAPPINGS = models_dir() / "vehicles" / "mappings"
@@ -26,12 +25,16 @@ def test_fmu_check_passes_and_fails(fmu_build, foreign_fmu, tmp_path, capsys):
     # a mapping written for another FMU: the check names the missing variables
     assert run(["fmu", "check", wheeled, "--mapping", str(MAPPINGS / "bench_tracked.toml")]) == 3
     assert "'left_lever' is not a variable of WheeledVehicle" in capsys.readouterr().out
-    # the third-party FMU with its own mapping
-    assert run(["fmu", "check", str(foreign_fmu), "--mapping", str(DATA / "foreign" / "mapping.toml")]) == 0
-    # an FMU without a manifest is not simulated
+    # the third-party FMU with its own mapping, trusted by the sha256 the user gives
+    assert run(["fmu", "check", str(foreign_fmu), "--mapping", str(DATA / "foreign" / "mapping.toml"),
+                "--sha256", sha256_file(foreign_fmu)]) == 0
+    capsys.readouterr()
+    # an FMU the build did not make, without a given sha256, is not simulated
     lone = tmp_path / "TrackedVehicle.fmu"
-    shutil.copy(fmu_build / "TrackedVehicle.fmu", lone)
+    data = bytearray((fmu_build / "TrackedVehicle.fmu").read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    lone.write_bytes(bytes(data))
     assert run(["fmu", "check", str(lone)]) == 3
-    assert "no manifest" in capsys.readouterr().out
+    assert "SHA-256 mismatch" in capsys.readouterr().out
     # a missing file is a bench error with a clear message
     assert run(["fmu", "info", str(tmp_path / "nothing.fmu")]) == 2

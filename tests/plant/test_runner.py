@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +13,7 @@ from bench.nav import earth
 from bench.paths import models_dir
 from bench.plant.driver import parse_commands
 from bench.plant.fmi import read_description
+from bench.plant.manifest import sha256_file
 from bench.plant.mapping import load_mapping
 from bench.plant.runner import PlantSetup, run_plant
 from bench.plant.trajectory import FmuTrajectory
@@ -35,22 +35,11 @@ DRIVE = [
 ]
 
 
-def test_tampered_or_unlisted_fmu_is_refused_before_loading(fmu_build, tmp_path):
-    fmu = tmp_path / "TrackedVehicle.fmu"
-    shutil.copy(fmu_build / "TrackedVehicle.fmu", fmu)
-    shutil.copy(fmu_build / "SHA256SUMS", tmp_path / "SHA256SUMS")
-    run = run_plant(_setup(fmu, DRIVE[:1], 2.0))  # listed and unchanged: runs
+def test_build_fmu_runs_trusted_by_the_build_manifest(fmu_build):
+    run = run_plant(_setup(fmu_build / "TrackedVehicle.fmu", DRIVE[:1], 2.0))
     assert run.steps == 2000
-    data = bytearray(fmu.read_bytes())
-    data[len(data) // 2] ^= 0xFF
-    fmu.write_bytes(bytes(data))
-    with pytest.raises(PlantError, match="SHA-256 mismatch"):
-        run_plant(_setup(fmu, DRIVE[:1], 2.0))
-    (tmp_path / "SHA256SUMS").write_text("")
-    with pytest.raises(PlantError, match="not listed"):
-        run_plant(_setup(fmu, DRIVE[:1], 2.0))
-    with pytest.raises(PlantError, match="SHA-256 mismatch"):
-        run_plant(_setup(fmu, DRIVE[:1], 2.0, sha256="0" * 64))
+    assert run.trust.verified and run.trust.source == f"the build manifest {fmu_build / 'SHA256SUMS'}"
+    assert run.trust.sha256 == run.sha256 == sha256_file(fmu_build / "TrackedVehicle.fmu")
 
 
 def test_mapping_that_does_not_fit_the_fmu_is_a_config_error(fmu_build, tmp_path):
@@ -91,7 +80,8 @@ def test_third_party_fmu_runs_through_a_mapping_file(foreign_fmu):
         {"at": "20 s", "steering": "5 deg"},  # left
         {"at": "30 s", "steering": "0 deg", "grade": "3 deg"},
     ]
-    setup = _setup(foreign_fmu, commands, 40.0, mapping=DATA / "foreign" / "mapping.toml")
+    setup = _setup(foreign_fmu, commands, 40.0, mapping=DATA / "foreign" / "mapping.toml",
+                   sha256=sha256_file(foreign_fmu))  # a third-party FMU: its hash comes from the case
     run = run_plant(setup)
     traj = FmuTrajectory(run, setup.script)
     k = traj.kinematics(np.array([19.9, 29.9, 39.9]))
