@@ -20,6 +20,7 @@ from pathlib import Path
 
 from bench.cli.app import EXIT_ERROR, EXIT_FAIL, EXIT_OK, EXIT_USAGE
 from bench.cli.progress import progress_bar
+from bench.textsafe import for_terminal
 
 __all__ = ["register", "exit_code"]
 
@@ -54,12 +55,13 @@ class _Reporter:
     def case_started(self, case, runs: int) -> None:
         self.index += 1
         if not self.quiet:
-            print(f"[{self.index}/{self.total}] {case.id}: {case.title} -- {runs} run(s)", file=sys.stderr)
+            line = f"[{self.index}/{self.total}] {case.id}: {case.title} -- {runs} run(s)"
+            print(for_terminal(line), file=sys.stderr)
 
     def run_started(self, case, seed: int):
         if self.quiet:
             return None
-        label = f"  {case.label} seed {seed}"
+        label = for_terminal(f"  {case.label} seed {seed}")
         state: dict = {}
 
         def progress(done: float, total: float) -> None:
@@ -72,11 +74,11 @@ class _Reporter:
     def run_finished(self, case, result) -> None:
         self._stack.close()
         if not self.quiet:
-            print(f"  {case.label} seed {result.seed}: {result.verdict}", file=sys.stderr)
+            print(for_terminal(f"  {case.label} seed {result.seed}: {result.verdict}"), file=sys.stderr)
 
     def case_finished(self, result) -> None:
         if not self.quiet:
-            print(f"  => {result.case_id}: {result.verdict} ({result.elapsed_s:.1f} s)", file=sys.stderr)
+            print(for_terminal(f"  => {result.case_id}: {result.verdict} ({result.elapsed_s:.1f} s)"), file=sys.stderr)
 
 
 def exit_code(cases) -> int:

@@ -36,6 +36,7 @@ from bench.frames import CanBatch
 from bench.run.realtime_plan import EMIT_CAN, EMIT_IMU, RealtimePlan, plan_emissions
 from bench.run.spec import DutSpec, LinkSpec
 from bench.run.traffic import Traffic
+from bench.textsafe import for_terminal
 from bench.transport.can_link import CanConfig, CanLink, open_can_link
 from bench.transport.serial_link import SerialConfig, SerialLink, open_serial_link
 from bench.wire.can import codec
@@ -135,8 +136,10 @@ class ExternalDut:
         raise DutError(f"the DUT process exited {describe_exit(code)} {when}" + self._tail())
 
     def _tail(self, n: int = 5) -> str:
-        """`` (last output: ...)`` with the DUT's last ``n`` non-empty lines, or nothing."""
-        texts = [t[:200] for t in (ln.text.strip() for ln in self._recent) if t][-n:]
+        """`` (last output: ...)`` with the DUT's last ``n`` non-empty lines, or nothing; their
+        control characters made visible (the reason is shown on terminals and in reports;
+        ``/dut/log`` keeps the lines raw)."""
+        texts = [for_terminal(t[:200]) for t in (ln.text.strip() for ln in self._recent) if t][-n:]
         return f" (last output: {' | '.join(texts)})" if texts else ""
 
     def _flush_lines(self) -> None:
