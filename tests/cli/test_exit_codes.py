@@ -111,12 +111,12 @@ def test_output_paths_are_not_inputs(monkeypatch, capsys, tmp_path):
 
 
 def test_a_crash_of_bench_accept_outside_a_case_logs_into_its_output_folder(monkeypatch, capsys, tmp_path):
-    import bench.report.table as table
+    import bench.acceptance.suite as suite
 
-    def broken(cases, width=40):
-        raise ZeroDivisionError("table")
+    def broken(paths):
+        raise ZeroDivisionError("collecting")
 
-    monkeypatch.setattr(table, "text_table", broken)
+    monkeypatch.setattr(suite, "collect_cases", broken)
     (tmp_path / "drive.toml").write_text(SHORT.read_text())
     case = tmp_path / "c.toml"
     case.write_text(_SYNTHETIC_CASE)
