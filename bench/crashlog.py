@@ -41,7 +41,11 @@ def _fallbacks() -> list[Path]:
 
 def one_line(exc: BaseException) -> str:
     """``TypeName: message`` on one line, control characters visible, at most 300 characters."""
-    text = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+    try:
+        message = str(exc)
+    except Exception:  # an exception whose __str__ fails still has a name
+        message = "(message unprintable)"
+    text = f"{type(exc).__name__}: {message}" if message else type(exc).__name__
     text = for_terminal(text)
     return text if len(text) <= _MAX_LINE else text[: _MAX_LINE - 1] + "…"
 

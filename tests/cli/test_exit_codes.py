@@ -157,6 +157,19 @@ def test_a_directory_given_as_the_input_is_a_usage_error(tmp_path, capsys, comma
     assert "Traceback" not in err and str(tmp_path) in err and len(err.splitlines()) == 1
 
 
+class _UnprintableError(Exception):
+    def __str__(self):
+        raise ValueError("no")
+
+
+def test_an_exception_that_cannot_even_be_printed_is_still_one_line(monkeypatch, capsys, state_home):
+    _crash_info(monkeypatch, _UnprintableError())
+    assert main(["info", str(SHORT)]) == 3
+    err = capsys.readouterr().err
+    log = state_home / LOG_NAME
+    assert err == f"bench: internal error: _UnprintableError: (message unprintable) (traceback in {log})\n"
+
+
 def test_the_console_script_exits_3_not_1_on_an_internal_crash(tmp_path):
     code = ("import sys, bench.cli.info as i\n"
             "def boom(p): raise ZeroDivisionError('division by zero')\n"
