@@ -174,7 +174,8 @@ def _run_case(
             except BenchError as exc:
                 result = failed(f"the run could not be executed: {type(exc).__name__}: {exc}")
             except Exception as exc:  # a crash of the runner, the scoring or the environment (disk full)
-                result = failed(crash_reason(f"the run of seed {seed} crashed", exc, log_dir))
+                which = f"seed {seed}" + (f" of variant {v}" if v else "")
+                result = failed(crash_reason(f"the run of {which} crashed", exc, log_dir))
             runs.append(result)
             _notify(reporter and reporter.run_finished, cv, result, out_dir=log_dir)
             if errors:

@@ -7,15 +7,20 @@ that stalls because of the bench. :class:`SerialReader` drains a link in a threa
 own and keeps what it read as chunks stamped with the bench clock at the time they were
 read; the run takes them (:meth:`SerialReader.take`) and records them.
 
-The thread polls the link every 50 ms (a pty read is a ``select`` on its master, so an
-idle line costs nothing but the wake-up). When more than ``max_pending`` bytes wait to be
-taken it stops reading until they are, so the far end waits as on a full line rather than
-the bench's memory growing without bound. :meth:`SerialReader.close` stops the thread,
-reads what is left and returns it; close the reader before the link.
+The thread sleeps in ``select`` on the link's descriptor (a pty master) and a wake-up
+pipe, so an idle line costs nothing and the reader never competes with a real-time
+emission loop unless the DUT really writes; a link without a descriptor (a pyserial URL)
+is polled every 50 ms. When more than ``max_pending`` bytes wait to be taken it stops
+reading until they are, so the far end waits as on a full line rather than the bench's
+memory growing without bound. :meth:`SerialReader.close` stops the thread, reads what is
+left and returns it; close the reader before the link.
 """
 
 from __future__ import annotations
 
+import contextlib
+import os
+import select
 import threading
 from collections.abc import Callable
 
@@ -48,6 +53,7 @@ class SerialReader:
         self._cond = threading.Condition()
         self._stop = threading.Event()
         self._closed = False
+        self._wake_r, self._wake_w = os.pipe()
         self._thread = threading.Thread(target=self._loop, name=f"serial-reader-{name or link.config.port}",
                                         daemon=True)
         self._thread.start()
@@ -65,14 +71,27 @@ class SerialReader:
             self.bytes_read += len(data)
 
     def _loop(self) -> None:
+        fd = self.link.fileno()
+        wake = select.poll()
+        wake.register(self._wake_r, select.POLLIN)
+        poller = select.poll()
+        poller.register(self._wake_r, select.POLLIN)
+        if fd is not None:
+            poller.register(fd, select.POLLIN)
         try:
             while not self._stop.is_set():
                 with self._cond:
                     while self._pending >= self.max_pending and not self._stop.is_set():
-                        self._cond.wait(_POLL_S)
-                if self._stop.is_set():
-                    break
-                data = self.link.read(timeout=_POLL_S, max_bytes=_READ_MAX)
+                        self._cond.wait()
+                if fd is None:
+                    data = self.link.read(timeout=_POLL_S, max_bytes=_READ_MAX)
+                else:
+                    ready = {f for f, _ in poller.poll()}
+                    if self._wake_r in ready:
+                        break
+                    data = self.link.read(timeout=0.0, max_bytes=_READ_MAX)
+                    if not data:  # readable but nothing to read (a hang-up): do not spin
+                        wake.poll(_POLL_S * 1e3)
                 if data:
                     self._keep(data)
         except Exception as exc:  # the link failed or was closed under the reader
@@ -92,7 +111,10 @@ class SerialReader:
 
     def stop(self) -> None:
         """Ask the thread to stop (returns at once; :meth:`close` waits for it)."""
-        self._stop.set()
+        if not self._stop.is_set():
+            self._stop.set()
+            with contextlib.suppress(OSError):
+                os.write(self._wake_w, b"x")
         with self._cond:
             self._cond.notify_all()
 
@@ -104,6 +126,9 @@ class SerialReader:
         self._closed = True
         self.stop()
         self._thread.join(timeout=5.0)
+        if not self._thread.is_alive():
+            for wake in (self._wake_r, self._wake_w):
+                os.close(wake)
         if not self._thread.is_alive() and self.error is None and not self.link.closed:
             try:  # what is left, bounded: a device that never stops talking cannot hold the close
                 while self._pending < self.max_pending and (data := self.link.read(timeout=0.0, max_bytes=_READ_MAX)):

@@ -66,3 +66,12 @@ def test_an_idle_line_gives_empty_batches_and_closes_at_once():
         reader = SerialReader(link, lambda: 0)
         assert len(reader.take()) == 0
         assert len(reader.close()) == 0 and reader.error is None
+
+
+def test_a_link_without_a_descriptor_is_polled():
+    with open_serial_link(SerialConfig(port="loop://")) as link:  # what the bench writes comes back
+        reader = SerialReader(link, lambda: 7)
+        link.write(b"echo" * 1000)
+        first = reader.take()  # whatever the thread read so far; close reads the rest
+        assert first.tobytes() + reader.close().tobytes() == b"echo" * 1000
+        assert reader.error is None
