@@ -96,7 +96,6 @@ class ExternalDut:
         self.on_lines = on_lines
         self.on_serial = on_serial
         self.readers: dict[str, SerialReader] = {}
-        self.serial_rx: dict[str, int] = {}  # bytes the DUT wrote per line
         self.now_ns = 0  # bench time stamped on received frames
         self.ready_ns = -1  # latest DUT_READY time received
         self.process: DutProcess | None = None
@@ -167,25 +166,15 @@ class ExternalDut:
                 self.on_lines(lines, self.now_ns)
         self._flush_serial()
 
-    def _flush_serial(self) -> None:
-        """Record what the DUT wrote on its serial lines since the last call."""
-        for name, reader in self.readers.items():
-            if reader.pending:
-                self._record_serial(name, reader.take())
-
-    def _record_serial(self, name: str, batch: SerialBatch) -> None:
-        if len(batch):
-            self.serial_rx[name] = self.serial_rx.get(name, 0) + int(batch.buf.size)
-            if self.on_serial is not None:
-                self.on_serial(name, batch)
-
-    def _close_readers(self) -> None:
-        """Stop the serial readers and record what they still hold (before the links close)."""
-        readers, self.readers = self.readers, {}
-        for reader in readers.values():
+    def _flush_serial(self, final: bool = False) -> None:
+        """Record what the DUT wrote on its serial lines since the last call (``final``: stop
+        the readers and take what they still hold; before the links close)."""
+        for reader in self.readers.values() if final else ():
             reader.stop()
-        for name, reader in readers.items():
-            self._record_serial(name, reader.close())
+        for name, reader in self.readers.items():
+            batch = reader.close() if final else reader.take() if reader.pending else None
+            if batch is not None and len(batch) and self.on_serial is not None:
+                self.on_serial(name, batch)
 
     @contextlib.contextmanager
     def _dut_side(self) -> Iterator[None]:
@@ -399,18 +388,16 @@ class ExternalDut:
                 self.process = None
         finally:
             try:
-                self._close_readers()
+                self._flush_serial(final=True)
             finally:
-                if self.serial_rx:
-                    facts["serial_rx_bytes"] = dict(self.serial_rx)
-                self._close_links()
+                rx = {name: r.bytes_read for name, r in self.readers.items() if r.bytes_read}
+                if rx:
+                    facts["serial_rx_bytes"] = rx
+                if self.can is not None:
+                    self.can.close()
+                    self.can = None
+                for link in self.serial.values():
+                    link.close()
+                self.serial = {}
+                self._tmp.cleanup()
         return facts
-
-    def _close_links(self) -> None:
-        if self.can is not None:
-            self.can.close()
-            self.can = None
-        for link in self.serial.values():
-            link.close()
-        self.serial = {}
-        self._tmp.cleanup()
