@@ -6,7 +6,9 @@ the results go under the output folder (``reports/`` by default): recordings,
 ``results.json``, ``junit.xml``, ``summary.txt``/``summary.md`` and error plots.
 
 Exit codes: 0 every case PASS or MARGINAL; 1 a case FAILed; 2 a case file is malformed
-(or bad usage); 3 a case could not be judged (ERROR).
+(or bad usage); 3 a case could not be judged (ERROR), or a report could not be written.
+A case that crashes is that case's ERROR (:mod:`bench.acceptance.suite`); the suite goes
+on and every report is still written (a report that fails does not stop the others).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from pathlib import Path
 
 from bench.cli.app import EXIT_ERROR, EXIT_FAIL, EXIT_OK, EXIT_USAGE
 from bench.cli.progress import progress_bar
+from bench.textsafe import for_terminal
 
 __all__ = ["register", "exit_code"]
 
@@ -54,12 +57,13 @@ class _Reporter:
     def case_started(self, case, runs: int) -> None:
         self.index += 1
         if not self.quiet:
-            print(f"[{self.index}/{self.total}] {case.id}: {case.title} -- {runs} run(s)", file=sys.stderr)
+            line = f"[{self.index}/{self.total}] {case.id}: {case.title} -- {runs} run(s)"
+            print(for_terminal(line), file=sys.stderr)
 
     def run_started(self, case, seed: int):
         if self.quiet:
             return None
-        label = f"  {case.label} seed {seed}"
+        label = for_terminal(f"  {case.label} seed {seed}")
         state: dict = {}
 
         def progress(done: float, total: float) -> None:
@@ -72,11 +76,11 @@ class _Reporter:
     def run_finished(self, case, result) -> None:
         self._stack.close()
         if not self.quiet:
-            print(f"  {case.label} seed {result.seed}: {result.verdict}", file=sys.stderr)
+            print(for_terminal(f"  {case.label} seed {result.seed}: {result.verdict}"), file=sys.stderr)
 
     def case_finished(self, result) -> None:
         if not self.quiet:
-            print(f"  => {result.case_id}: {result.verdict} ({result.elapsed_s:.1f} s)", file=sys.stderr)
+            print(for_terminal(f"  => {result.case_id}: {result.verdict} ({result.elapsed_s:.1f} s)"), file=sys.stderr)
 
 
 def exit_code(cases) -> int:
@@ -95,7 +99,7 @@ def exit_code(cases) -> int:
 def _run(args: argparse.Namespace) -> int:
     from bench.acceptance.suite import SuiteOptions, collect_cases, run_suite
     from bench.paths import reports_dir, test_cases_dir
-    from bench.report.outputs import write_reports
+    from bench.report.outputs import crash_note, write_reports
     from bench.report.table import text_table
 
     paths = args.paths or [str(test_cases_dir())]
@@ -110,10 +114,15 @@ def _run(args: argparse.Namespace) -> int:
     results = run_suite(files, options, _Reporter(len(files), args.quiet))
     elapsed = time.perf_counter() - started
     run_info = {"started_utc": when, "elapsed_s": round(elapsed, 3), "paths": [str(p) for p in files]}
-    written = write_reports(results, out, run_info, plots=not args.no_plots)
-    print(text_table(results))
-    print(
-        f"\n{len(results)} case(s) in {elapsed:.1f} s; results: {written['json']}, {written['junit']}, "
-        f"{written['summary']}"
-    )
-    return exit_code(results)
+    failures: list[str] = []
+    written = write_reports(results, out, run_info, plots=not args.no_plots, failures=failures)
+    try:
+        print(text_table(results))
+    except Exception as exc:  # the reports are written: say so rather than lose the exit code
+        failures.append(crash_note("the summary table", exc, out))
+    for note in failures:
+        print(for_terminal(f"bench accept: could not write {note}"), file=sys.stderr)
+    names = ", ".join(str(written[k]) for k in ("json", "junit", "summary") if k in written) or "none written"
+    print(f"\n{len(results)} case(s) in {elapsed:.1f} s; results: {names}")
+    code = exit_code(results)
+    return EXIT_ERROR if failures and code in (EXIT_OK, EXIT_FAIL) else code

@@ -5,6 +5,9 @@ from __future__ import annotations
 import argparse
 import datetime as _dt
 import json
+from typing import Any
+
+from bench.textsafe import for_terminal
 
 __all__ = ["register", "describe"]
 
@@ -51,11 +54,24 @@ def describe(path: str) -> dict:
     return out
 
 
+def _shown(obj: Any) -> Any:
+    """``obj`` with every string made terminal-safe (a recording's text, a DUT's output
+    quoted in a reason, is shown, not acted on)."""
+    if isinstance(obj, str):
+        return for_terminal(obj)
+    if isinstance(obj, dict):
+        return {_shown(k): _shown(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_shown(v) for v in obj]
+    return obj
+
+
 def _run(args: argparse.Namespace) -> int:
     d = describe(args.recording)
     if args.json:
-        print(json.dumps(d, indent=2, default=str))
+        print(json.dumps(d, indent=2, default=str))  # ASCII: JSON escapes control characters
         return 0
+    d = _shown(d)
     md = d["metadata"]
     start = md.get("run_start", {})
     print(f"{d['path']}" + ("" if d["complete"] else "  (unfinished file: read up to the last complete chunk)"))

@@ -77,6 +77,7 @@ def _run(args: argparse.Namespace) -> int:
     from bench.run.replay import RecordingReplay
     from bench.run.spec import ClockSpec, DutSpec, LinkSpec
     from bench.sensors.suite import fault_schedule
+    from bench.textsafe import for_terminal
 
     links = LinkSpec()
     clock = ClockSpec(mode=args.clock or "lockstep", step_ns=round(args.step * 1e6), speed=args.speed)
@@ -112,8 +113,8 @@ def _run(args: argparse.Namespace) -> int:
                                    start_ns=round(args.start * 1e9))
     with progress_bar("replay", (provider.duration_ns - provider.start_ns) * 1e-9, enabled=not args.quiet) as bar:
         result = execute(provider, dut, links, clock, Path(args.out), progress=bar)
-    print(f"{result.path}: {result.status}" + (f" ({result.reason})" if result.reason else "")
-          + f", {result.bench_s:.1f} s of bench time in {result.elapsed_s:.1f} s")
+    print(for_terminal(f"{result.path}: {result.status}" + (f" ({result.reason})" if result.reason else "")
+                       + f", {result.bench_s:.1f} s of bench time in {result.elapsed_s:.1f} s"))
     if result.timing is not None:
         print(f"  timing: {result.timing.text()}", file=sys.stderr)
     return 0 if result.ok else 3

@@ -53,17 +53,18 @@ def _run(args: argparse.Namespace) -> int:
     from bench.report.junit import write_junit
     from bench.report.results import results_json, write_json
     from bench.report.table import text_table
+    from bench.textsafe import for_terminal
 
     results = score_files(args.recordings, args.case)
     print(text_table(results))
     if args.verbose:
         for cr in results:
             for r in cr.runs:
-                print(f"\n{Path(r.recording).name}: {r.verdict}")
+                print(for_terminal(f"\n{Path(r.recording).name}: {r.verdict}", keep="\n"))
                 for label, block in r.overview.items():
                     if isinstance(block, dict):
                         for k, v in block.items():
-                            print(f"  {label:<10} {k:<28} {v}")
+                            print(for_terminal(f"  {label:<10} {k:<28} {v}"))
     if args.json:
         write_json(results_json(results), args.json)
     if args.junit:

@@ -3,7 +3,8 @@ directions, with the bench time it went out or came in.
 
 Topics (see docs/recording.md): ``/wire/can/tx`` (bench to DUT) and ``/wire/can/rx`` (DUT
 to bench), columnar :data:`CAN_TX_DTYPE` / :data:`CAN_RX_DTYPE`; ``/wire/imu/tx``,
-``/wire/gnss/tx`` and their ``rx`` (what the DUT wrote back, if anything), byte chunks.
+``/wire/gnss/tx`` and their ``rx`` (every byte the DUT wrote on that line, stamped with the
+bench time the bench read it; external and hardware DUTs), byte chunks.
 Replay and offline checks rebuild :class:`~bench.frames.CanBatch` and
 :class:`~bench.frames.SerialBatch` from them.
 """

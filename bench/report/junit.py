@@ -6,6 +6,10 @@ requirement ids, metric, value, limit and paper figure as ``<property>`` element
 FAIL is a ``<failure>``, ERROR an ``<error>`` (never a failure); MARGINAL passes with
 a ``verdict = MARGINAL`` property. A case that could not be loaded or run is a
 testcase ``<load>`` with an ``<error>``.
+
+Every text and attribute goes through :func:`~bench.textsafe.xml_safe`: ElementTree
+escapes markup but writes NUL, ESC and lone surrogates raw, which makes the file
+unparsable (a crashed DUT's last output lines are in the reasons).
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ from pathlib import Path
 from bench.acceptance.judge import CaseResult
 from bench.acceptance.verdict import Verdict
 from bench.report.results import criterion_json
+from bench.textsafe import xml_safe
 
 __all__ = ["junit_xml", "write_junit"]
 
@@ -79,6 +84,11 @@ def junit_xml(cases: Sequence[CaseResult], name: str = "bench accept") -> ET.Ele
             totals[k] += v
     for k, v in totals.items():
         root.set(k, str(v))
+    for el in root.iter():
+        if el.text:
+            el.text = xml_safe(el.text)
+        for k, v in el.attrib.items():
+            el.set(k, xml_safe(v))
     return root
 
 

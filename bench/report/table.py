@@ -3,6 +3,11 @@
 One row per criterion and variant: case, variant, criterion, requirement, what is
 measured over which window, the value, the limit, the paper's figure and the verdict;
 then one row per case with its verdict and what went wrong.
+
+The rows and lines are built raw; the text table shows them through
+:func:`~bench.textsafe.for_terminal` and the Markdown one through
+:func:`~bench.textsafe.for_markdown`, so DUT-provided text (a crashed DUT's last output
+lines in a reason) can neither drive a terminal nor inject markup.
 """
 
 from __future__ import annotations
@@ -11,6 +16,7 @@ from collections.abc import Sequence
 
 from bench.acceptance.judge import CaseResult
 from bench.report.results import criterion_json
+from bench.textsafe import for_markdown, for_terminal
 
 __all__ = ["summary_rows", "text_table", "markdown_table", "case_lines", "reason_lines"]
 
@@ -60,18 +66,20 @@ def _clip(s: str, n: int) -> str:
 def text_table(cases: Sequence[CaseResult], width: int = 40) -> str:
     """A fixed-width table (long cells clipped to ``width``)."""
     rows = [HEADER, *summary_rows(cases)]
-    rows = [tuple(_clip(c, width) for c in r) for r in rows]
+    rows = [tuple(_clip(for_terminal(c), width) for c in r) for r in rows]
     widths = [max(len(r[i]) for r in rows) for i in range(len(HEADER))]
     lines = []
     for k, r in enumerate(rows):
         lines.append("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip())
         if k == 0:
             lines.append("  ".join("-" * w for w in widths))
-    return "\n".join([*lines, "", *case_lines(cases), *reason_lines(cases)])
+    notes = [for_terminal(line) for line in (*case_lines(cases), *reason_lines(cases))]
+    return "\n".join([*lines, "", *notes])
 
 
 def reason_lines(cases: Sequence[CaseResult]) -> list[str]:
-    """Why criteria were not a plain pass, one line each (empty when all passed plainly)."""
+    """Why criteria were not a plain pass, one line each (empty when all passed plainly; raw
+    text: escape it for where it is shown)."""
     out = []
     for cr in cases:
         for res in cr.criteria:
@@ -82,7 +90,7 @@ def reason_lines(cases: Sequence[CaseResult]) -> list[str]:
 
 
 def case_lines(cases: Sequence[CaseResult]) -> list[str]:
-    """One line per case: verdict, title, and the first problem if any."""
+    """One line per case: verdict, title, and the first problem if any (raw text)."""
     out = []
     for cr in cases:
         problems = list(cr.errors)
@@ -104,7 +112,7 @@ def markdown_table(cases: Sequence[CaseResult]) -> str:
     rows = summary_rows(cases)
     out = ["| " + " | ".join(HEADER) + " |", "|" + "---|" * len(HEADER)]
     for r in rows:
-        out.append("| " + " | ".join(c.replace("|", "\\|") for c in r) + " |")
+        out.append("| " + " | ".join(for_markdown(c) for c in r) + " |")
     out.append("")
-    out.extend(f"- {line}" for line in case_lines(cases))
+    out.extend(f"- {for_markdown(line)}" for line in case_lines(cases))
     return "\n".join(out) + "\n"

@@ -42,7 +42,7 @@ from bench.errors import BenchError, ConfigError, DutError
 from bench.faults.wire import WIRE_EVENTS_TOPIC
 from bench.frames import CanBatch
 from bench.record.mcap_io import RecordingWriter
-from bench.record.wire_topics import CAN_TX, SERIAL_TX, declare_wire_topics, write_can, write_serial
+from bench.record.wire_topics import CAN_TX, SERIAL_RX, SERIAL_TX, declare_wire_topics, write_can, write_serial
 from bench.run.external import ExternalDut
 from bench.run.inprocess import InProcessDut
 from bench.run.output import DutOutputRecorder
@@ -179,7 +179,8 @@ def execute(
         if dut.kind == "in_process":
             dut_in = InProcessDut(estimator, epoch)
         else:
-            dut_ext = ExternalDut(dut, links, lockstep=lockstep, on_lines=out.log)
+            dut_ext = ExternalDut(dut, links, lockstep=lockstep, on_lines=out.log,
+                                  on_serial=lambda name, chunks: write_serial(rec, SERIAL_RX[name], chunks))
         start_ns = provider.start_ns
         step = clock_spec.step_ns
         total = provider.duration_ns - provider.duration_ns % step  # the run ends on a step

@@ -15,7 +15,10 @@ A DUT that dies, does not answer, never starts, stops reading its serial lines, 
 floods the bus ends the run with a :class:`~bench.errors.DutError` naming what happened
 (with its exit status and last output lines when it died); shutdown always ends the
 whole process group. The DUT's standard output and error are recorded as they come
-(lockstep: after each step; real time: at the end of each window).
+(lockstep: after each step; real time: at the end of each window), and so are the bytes
+it writes on its serial lines, drained by a thread per line so that it never blocks
+(recorded after each step, in real time in the slack between emissions and at the end of
+each window, and at shutdown).
 """
 
 from __future__ import annotations
@@ -32,12 +35,14 @@ import numpy as np
 from bench.clock.pacing import Clock, TimingLog
 from bench.dut.process import DutProcess, LogLine, describe_exit, fill_placeholders
 from bench.errors import ConfigError, DutError, LinkError
-from bench.frames import CanBatch
+from bench.frames import CanBatch, SerialBatch
 from bench.run.realtime_plan import EMIT_CAN, EMIT_IMU, RealtimePlan, plan_emissions
 from bench.run.spec import DutSpec, LinkSpec
 from bench.run.traffic import Traffic
+from bench.textsafe import for_terminal
 from bench.transport.can_link import CanConfig, CanLink, open_can_link
 from bench.transport.serial_link import SerialConfig, SerialLink, open_serial_link
+from bench.transport.serial_reader import SerialReader
 from bench.wire.can import codec
 
 __all__ = ["ExternalDut", "RealtimePlan", "serial_config", "can_config"]
@@ -70,6 +75,11 @@ class ExternalDut:
         Lockstep mode (BENCH_TIME with the lockstep bit, DUT_READY awaited).
     on_lines:
         Receives the DUT's output lines with the bench time they are recorded at.
+    on_serial:
+        Receives ``(link name, chunks)``: the bytes the DUT wrote on its ``imu`` or ``gnss``
+        line, stamped with the bench time they were read at. Every serial link is drained
+        by a :class:`~bench.transport.serial_reader.SerialReader` thread whether or not
+        anyone records them, so a DUT that writes never blocks on a full pty.
     """
 
     def __init__(
@@ -79,10 +89,13 @@ class ExternalDut:
         *,
         lockstep: bool,
         on_lines: Callable[[list[LogLine], int], None] | None = None,
+        on_serial: Callable[[str, SerialBatch], None] | None = None,
     ):
         self.spec = spec
         self.lockstep = lockstep
         self.on_lines = on_lines
+        self.on_serial = on_serial
+        self.readers: dict[str, SerialReader] = {}
         self.now_ns = 0  # bench time stamped on received frames
         self.ready_ns = -1  # latest DUT_READY time received
         self.process: DutProcess | None = None
@@ -96,6 +109,8 @@ class ExternalDut:
             self.can = open_can_link(can_config(links.can), clock=lambda: self.now_ns)
             self.serial["imu"] = open_serial_link(serial_config(links.imu, "imu", 460_800))
             self.serial["gnss"] = open_serial_link(serial_config(links.gnss, "gnss", 115_200))
+            for name, link in self.serial.items():
+                self.readers[name] = SerialReader(link, lambda: self.now_ns, name=name)
             if spec.kind == "external":
                 self._start()
         except BaseException:
@@ -135,17 +150,31 @@ class ExternalDut:
         raise DutError(f"the DUT process exited {describe_exit(code)} {when}" + self._tail())
 
     def _tail(self, n: int = 5) -> str:
-        """`` (last output: ...)`` with the DUT's last ``n`` non-empty lines, or nothing."""
-        texts = [t[:200] for t in (ln.text.strip() for ln in self._recent) if t][-n:]
+        """`` (last output: ...)`` with the DUT's last ``n`` non-empty lines, or nothing; their
+        control characters made visible (the reason is shown on terminals and in reports;
+        ``/dut/log`` keeps the lines raw)."""
+        texts = [for_terminal(t[:200]) for t in (ln.text.strip() for ln in self._recent) if t][-n:]
         return f" (last output: {' | '.join(texts)})" if texts else ""
 
     def _flush_lines(self) -> None:
-        """Record the DUT's output lines read so far (at the current bench time)."""
+        """Record the DUT's output lines read so far (at the current bench time), and the
+        bytes it wrote on its serial lines."""
         if self.process is not None and self.process.has_lines:
             lines = self.process.take_lines()
             self._recent = (self._recent + lines)[-20:]
             if self.on_lines is not None:
                 self.on_lines(lines, self.now_ns)
+        self._flush_serial()
+
+    def _flush_serial(self, final: bool = False) -> None:
+        """Record what the DUT wrote on its serial lines since the last call (``final``: stop
+        the readers and take what they still hold; before the links close)."""
+        for reader in self.readers.values() if final else ():
+            reader.stop()
+        for name, reader in self.readers.items():
+            batch = reader.close() if final else reader.take() if reader.pending else None
+            if batch is not None and len(batch) and self.on_serial is not None:
+                self.on_serial(name, batch)
 
     @contextlib.contextmanager
     def _dut_side(self) -> Iterator[None]:
@@ -322,6 +351,7 @@ class ExternalDut:
             if idle is not None and k < n:
                 slack = times[k] - clock.now_ns()
                 if slack > 5_000_000:
+                    self._flush_serial()
                     idle(slack)
             if self.now_ns >= next_check:  # a few microseconds every 100 ms, late or not
                 next_check = self.now_ns + 100_000_000
@@ -357,11 +387,17 @@ class ExternalDut:
                 self._flush_lines()
                 self.process = None
         finally:
-            if self.can is not None:
-                self.can.close()
-                self.can = None
-            for link in self.serial.values():
-                link.close()
-            self.serial = {}
-            self._tmp.cleanup()
+            try:
+                self._flush_serial(final=True)
+            finally:
+                rx = {name: r.bytes_read for name, r in self.readers.items() if r.bytes_read}
+                if rx:
+                    facts["serial_rx_bytes"] = rx
+                if self.can is not None:
+                    self.can.close()
+                    self.can = None
+                for link in self.serial.values():
+                    link.close()
+                self.serial = {}
+                self._tmp.cleanup()
         return facts

@@ -131,6 +131,11 @@ class SerialLink:
         self.bytes_read += len(data)
         return data
 
+    def fileno(self) -> int | None:
+        """A file descriptor that ``select`` reports readable when bytes wait to be read, or
+        None when the link has none (pyserial URLs): then poll :meth:`read` with a timeout."""
+        return None
+
     def read_chunk(self, timeout: float | None = 0.0, max_bytes: int = 1 << 16) -> SerialChunk:
         """:meth:`read` stamped with the bench clock (0 without one)."""
         data = self.read(timeout, max_bytes)
@@ -209,6 +214,9 @@ class PtyLink(SerialLink):
             self._closed = True
             raise LinkError(f"cannot create a pty pair: {exc}") from exc
         self.dut_port = self.pair.slave_path
+
+    def fileno(self) -> int | None:
+        return None if self._closed else self.pair.master_fd
 
     def _write(self, data: bytes, timeout: float) -> None:
         view = memoryview(data)
