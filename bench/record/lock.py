@@ -24,7 +24,7 @@ from pathlib import Path
 
 from bench.errors import ConfigError
 
-__all__ = ["claim", "holder", "clear_outputs"]
+__all__ = ["claim", "holder", "preflight", "preflight_folder", "clear_outputs"]
 
 _USAGE = {
     errno.EISDIR: "is a folder, expected a recording file",
@@ -129,11 +129,61 @@ def claim(path: str | Path, *, overwrite: bool) -> int:
     return fd
 
 
+def preflight(path: str | Path, *, force: bool) -> None:
+    """Check up front, changing nothing, that ``path`` can become a recording: not a
+    folder, its folder path free of files and writable, not being written by another
+    bench, not an existing file unless ``force``. Raises :class:`ConfigError`."""
+    path = Path(path)
+    if path.is_dir():
+        raise ConfigError(_USAGE[errno.EISDIR], file=str(path))
+    if os.path.lexists(path):
+        if not path.is_file():
+            raise ConfigError("is not a regular file (a device or FIFO?), expected a recording file", file=str(path))
+        pid = holder(path)
+        if pid is not None:
+            raise _refuse_locked(path, pid)
+        if not force:
+            raise _refuse_existing(path)
+        _writable(path, path, os.W_OK)
+        return
+    folder = _existing_ancestor(path.parent)
+    if not folder.is_dir():
+        raise ConfigError(_USAGE[errno.ENOTDIR], file=str(path))
+    _writable(folder, path, os.W_OK | os.X_OK)
+
+
+def _existing_ancestor(folder: Path) -> Path:
+    while not os.path.lexists(folder) and folder != folder.parent:
+        folder = folder.parent
+    return folder
+
+
+def preflight_folder(folder: str | Path) -> None:
+    """Check up front that ``folder`` is (or can be created as) a writable folder: not a
+    file, no file on its path, not read-only. Raises :class:`ConfigError`."""
+    folder = Path(folder)
+    found = _existing_ancestor(folder)
+    if not found.is_dir():
+        what = "is a file, expected a folder" if found == folder else (
+            f"cannot be created: {found} on its path is a file, not a folder")
+        raise ConfigError(what, file=str(folder))
+    _writable(found, folder, os.W_OK | os.X_OK)
+
+
+def _writable(where: Path, path: Path, mode: int) -> None:
+    if not os.access(where, mode):
+        code = errno.EROFS if os.statvfs(where).f_flag & os.ST_RDONLY else errno.EACCES
+        raise _usage(path, OSError(code, os.strerror(code)))
+
+
 def clear_outputs(paths: Iterable[str | Path], *, force: bool) -> list[Path]:
     """Make way for recordings about to be written (``bench run``/``accept``): refuse when
     one exists without ``force`` or is being written by another process; with ``force``
     remove the existing ones. Returns those removed."""
-    existing = [Path(p) for p in paths if os.path.lexists(p)]
+    paths = [Path(p) for p in paths]
+    for folder in sorted({p.parent for p in paths}):
+        preflight_folder(folder)
+    existing = [p for p in paths if os.path.lexists(p)]
     for p in existing:
         if p.is_dir():
             raise ConfigError(_USAGE[errno.EISDIR], file=str(p))
