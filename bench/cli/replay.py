@@ -139,6 +139,10 @@ def _run(args: argparse.Namespace) -> int:
         raise ConfigError(f"the start {args.start:g} s must be a whole number of scheduler steps "
                           f"({clock.step_ns / 1e6:g} ms)", key="--start")
     preflight(args.out, force=args.force)
+    for src in (args.recording, args.can_log, args.imu_log, args.gnss_log, args.truth):
+        if src and Path(src).exists() and Path(args.out).exists() and Path(src).samefile(args.out):
+            raise ConfigError(f"is the input {src} itself: a replay cannot overwrite what it reads", file=args.out,
+                              key="-o")
     if logs:
         if args.accept_damaged_source:
             raise ConfigError("--accept-damaged-source is for recordings; field logs have no such check",

@@ -187,6 +187,8 @@ def clear_outputs(paths: Iterable[str | Path], *, force: bool) -> list[Path]:
     for p in existing:
         if p.is_dir():
             raise ConfigError(_USAGE[errno.EISDIR], file=str(p))
+        if not p.is_file():
+            raise ConfigError("is not a regular file (a device or FIFO?), expected a recording file", file=str(p))
         pid = holder(p)
         if pid is not None:
             raise _refuse_locked(p, pid)

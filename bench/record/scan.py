@@ -156,7 +156,7 @@ class FileIndex:
         for block in self.blocks:
             if isinstance(block, _Loose):
                 if block.channel in wanted:
-                    body = self.file.read(block.offset + 9, block.length - 9)
+                    body = self._reread(block.offset + 9, block.length - 9)
                     cid, _, log_time, _ = struct.unpack_from("<HIQQ", body, 0)
                     yield cid, log_time, bytes(body[22:])
                 continue
@@ -164,7 +164,7 @@ class FileIndex:
                 continue
             try:
                 data = self._inflate(block)
-            except _Bad as exc:
+            except (_Bad, OSError) as exc:
                 raise RecordingError(
                     f"{self.path}: chunk {block.number} changed since the file was opened: {exc}"
                 ) from None
@@ -173,8 +173,17 @@ class FileIndex:
                     yield cid, log_time, data[a:b]
 
     def attachment_data(self, offset: int, length: int) -> bytes:
-        rec = Attachment.read(ReadDataStream(BytesIO(self.file.read(offset + 9, length - 9))))
-        return bytes(rec.data)
+        body = self._reread(offset + 9, length - 9)
+        try:
+            return bytes(_attachment(body).data)
+        except _Bad as exc:
+            raise RecordingError(f"{self.path}: the file changed since it was opened: {exc}") from None
+
+    def _reread(self, pos: int, n: int) -> bytes:
+        try:
+            return self.file.read(pos, n)
+        except (_Bad, OSError) as exc:
+            raise RecordingError(f"{self.path}: the file changed since it was opened: {exc}") from None
 
     def _inflate(self, chunk: ChunkInfo) -> bytes:
         if chunk.number in self._cache:

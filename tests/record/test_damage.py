@@ -220,3 +220,14 @@ def test_any_damage_reads_only_what_was_written(tmp_path_factory, flips, truncat
             assert doc in [{"i": i} for i in range(BLOCKS)]
     r.metadata(), r.attachments()
     json.dumps([d.text() for d in r.damage])
+
+
+def test_a_file_overwritten_under_an_open_reader_is_a_recording_error(rec):
+    from bench.errors import RecordingError
+
+    r = RecordingReader(rec)
+    rec.write_bytes(rec.read_bytes()[:60])  # another program truncates it while it is open
+    with pytest.raises(RecordingError, match="changed since"):
+        r.read_columnar("/x")
+    with pytest.raises(RecordingError, match="changed since"):
+        r.attachments()

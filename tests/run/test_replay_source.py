@@ -117,3 +117,12 @@ def test_a_replay_of_an_intact_recording_is_judged_as_before(run_rec, tmp_path):
     assert start["source_complete"] == "true" and json.loads(start["source_problems"]) == []
     code, run = _score(out, tmp_path)
     assert code == 0 and run["verdict"] == "PASS" and run["notes"] == []
+
+
+def test_a_replay_onto_its_own_source_is_refused(run_rec, tmp_path, capsys):
+    src = tmp_path / "same.mcap"
+    shutil.copy(run_rec, src)
+    before = src.read_bytes()
+    assert _replay(src, src, "--force") == 2
+    assert "a replay cannot overwrite what it reads" in capsys.readouterr().err
+    assert src.read_bytes() == before
