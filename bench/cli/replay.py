@@ -138,7 +138,6 @@ def _run(args: argparse.Namespace) -> int:
     if start_ns % clock.step_ns:
         raise ConfigError(f"the start {args.start:g} s must be a whole number of scheduler steps "
                           f"({clock.step_ns / 1e6:g} ms)", key="--start")
-    preflight(args.out, force=args.force)
     for src in (args.recording, args.can_log, args.imu_log, args.gnss_log, args.truth):
         if src and Path(src).exists() and Path(args.out).exists() and Path(src).samefile(args.out):
             raise ConfigError(f"is the input {src} itself: a replay cannot overwrite what it reads", file=args.out,
@@ -151,6 +150,8 @@ def _run(args: argparse.Namespace) -> int:
     else:
         provider = RecordingReplay(args.recording, lockstep=clock.lockstep, faults=faults, start_ns=start_ns,
                                    accept_damaged_source=args.accept_damaged_source)
+    preflight(args.out, force=args.force)  # the inputs first, then the output
+    if not logs:
         _say_source(provider, args.quiet)
     with progress_bar("replay", (provider.duration_ns - provider.start_ns) * 1e-9, enabled=not args.quiet) as bar:
         result = execute(provider, dut, links, clock, Path(args.out), progress=bar, overwrite=args.force)

@@ -46,10 +46,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _run(args: argparse.Namespace) -> int:
     from bench.record.lock import preflight
     from bench.scenario.loader import load_scenario
+    from bench.sensors.suite import fault_schedule
     from bench.synth import SynthOptions, synthesize
 
-    preflight(args.output, force=args.force)
     scenario = load_scenario(args.scenario)
+    fault_schedule(scenario.doc, file=str(scenario.path), extra=tuple(args.faults))  # bad input first
+    preflight(args.output, force=args.force)  # then the output, before the trajectory is built
     options = SynthOptions(
         seed=args.seed,
         imu_rate_hz=args.imu_rate,
