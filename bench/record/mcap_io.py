@@ -16,7 +16,8 @@ bench time of the first record in the message. Recordings are zstd-chunked with 
 
 The ``mcap`` library is used inside :mod:`bench.record` only: :mod:`~bench.record.writer`
 (writing, one locked writer per file), :mod:`~bench.record.scan` (reading record by
-record past damage) and :mod:`~bench.record.reader` on top of it. This module gathers
+record past damage, with :mod:`~bench.record.framing` for the records and
+:mod:`~bench.record.index` for what was found) and :mod:`~bench.record.reader` on top. This module gathers
 their public names. See ``docs/recording.md`` for the topic list and the damage rules.
 """
 

@@ -23,12 +23,7 @@ the chunks' contents are read again on demand (:meth:`FileIndex.messages`).
 
 from __future__ import annotations
 
-import os
-import stat
 import struct
-import zlib
-from collections.abc import Iterator
-from dataclasses import dataclass, field
 from io import BytesIO
 from pathlib import Path
 from typing import Any
@@ -36,364 +31,28 @@ from typing import Any
 import numpy as np
 from mcap.data_stream import ReadDataStream
 from mcap.opcode import Opcode
-from mcap.records import Attachment, Channel, Chunk, Metadata, Schema
-from mcap.stream_reader import get_chunk_data_stream
+from mcap.records import Channel, Metadata, Schema
 
-from bench.errors import ConfigError, RecordingError
+from bench.errors import ConfigError
+from bench.record.framing import (
+    BadRecord,
+    RecordFile,
+    attachment_record,
+    check_body,
+    chunk_header,
+    chunk_index,
+    decompress,
+    inner_records,
+    open_recording,
+    parse_record,
+)
+from bench.record.index import ChunkInfo, Damage, FileIndex, Loose
 from bench.record.layout import MAGIC, PROFILE
 
 __all__ = ["Damage", "ChunkInfo", "FileIndex", "scan"]
 
 _OPCODES = np.array(sorted(int(o) for o in Opcode), dtype=np.uint8)
 _KNOWN = frozenset(int(o) for o in Opcode)
-_MAX_UNCOMPRESSED = 1 << 30  # a chunk header claiming more is damaged
-_CACHE_BYTES = 64 << 20  # decompressed chunks kept for the next read
-
-
-class _Bad(Exception):  # noqa: N818 - internal, never leaves this module
-    """A record body that does not parse (the reason is the message)."""
-
-
-@dataclass(frozen=True)
-class Damage:
-    """A stretch of the file that could not be read.
-
-    ``start_ns``/``end_ns`` are message log times (UTC ns) of what was lost when known
-    (``exact``: from the chunk header or the summary; otherwise the gap between the
-    readable neighbours); ``topics`` the topics it held when known.
-    """
-
-    what: str
-    offset: int
-    length: int
-    reason: str
-    chunk: int | None = None
-    start_ns: int | None = None
-    end_ns: int | None = None
-    exact: bool = True
-    topics: tuple[str, ...] = ()
-    messages: int | None = None
-
-    def text(self, epoch_ns: int = 0) -> str:
-        """One line: what, where, which span and topics, why."""
-        out = f"{self.what} at byte {self.offset} ({self.length} B)"
-        if self.start_ns is not None and self.end_ns is not None:
-            a, b = (self.start_ns - epoch_ns) * 1e-9, (self.end_ns - epoch_ns) * 1e-9
-            out += (f", messages logged at bench time {a:.3f}-{b:.3f} s" if self.exact
-                    else f", between bench time {a:.3f} and {b:.3f} s")
-        if self.messages is not None:
-            out += f", {self.messages} messages"
-        if self.topics:
-            out += f" of {', '.join(self.topics)}"
-        return f"{out}: {self.reason}"
-
-
-@dataclass
-class ChunkInfo:
-    """A chunk as found: where, its header, and what it holds (channel id -> messages)."""
-
-    number: int
-    offset: int
-    length: int
-    start_ns: int | None
-    end_ns: int | None
-    counts: dict[int, int] = field(default_factory=dict)
-    indexed: dict[int, int] = field(default_factory=dict)  # from its message index records
-    damaged: str | None = None
-
-
-@dataclass
-class _Loose:
-    """A message record outside any chunk."""
-
-    offset: int
-    length: int
-    channel: int
-
-
-@dataclass
-class FileIndex:
-    """Everything one scan of a recording found (see the module docstring)."""
-
-    path: Path
-    size: int
-    profile: str = ""
-    library: str = ""
-    finished: bool = False
-    blocks: list[ChunkInfo | _Loose] = field(default_factory=list)
-    schemas: dict[int, Schema] = field(default_factory=dict)
-    channels: dict[int, Channel] = field(default_factory=dict)
-    metadata: list[tuple[str, dict[str, str]]] = field(default_factory=list)
-    attachments: list[tuple[str, str, int, int]] = field(default_factory=list)  # name, type, offset, length
-    damage: list[Damage] = field(default_factory=list)
-    tail: tuple[int, int] | None = None  # (offset, length) of an unfinished record at the end
-    counts: dict[int, int] = field(default_factory=dict)  # channel id -> readable messages
-    readable: set[int] = field(default_factory=set)  # channels whose definition and schema are known
-    _file: _File | None = None
-    _cache: dict[int, bytes] = field(default_factory=dict)
-
-    @property
-    def chunks(self) -> list[ChunkInfo]:
-        return [b for b in self.blocks if isinstance(b, ChunkInfo)]
-
-    def close(self) -> None:
-        """Close the file (idempotent)."""
-        if self._file is not None:
-            self._file.close()
-            self._file = None
-        self._cache.clear()
-
-    @property
-    def file(self) -> _File:
-        if self._file is None:
-            raise ValueError(f"{self.path}: the recording was closed")
-        return self._file
-
-    def messages(self, channels: set[int] | None = None) -> Iterator[tuple[int, int, bytes]]:
-        """``(channel id, log time, data)`` of every readable message in file order
-        (only of ``channels`` if given); damaged chunks are skipped."""
-        wanted = self.readable if channels is None else channels & self.readable
-        for block in self.blocks:
-            if isinstance(block, _Loose):
-                if block.channel in wanted:
-                    body = self._reread(block.offset + 9, block.length - 9)
-                    cid, _, log_time, _ = struct.unpack_from("<HIQQ", body, 0)
-                    yield cid, log_time, bytes(body[22:])
-                continue
-            if block.damaged is not None or not wanted.intersection(block.counts):
-                continue
-            try:
-                data = self._inflate(block)
-            except (_Bad, OSError) as exc:
-                raise RecordingError(
-                    f"{self.path}: chunk {block.number} changed since the file was opened: {exc}"
-                ) from None
-            for cid, log_time, a, b in _inner_messages(data):
-                if cid in wanted:
-                    yield cid, log_time, data[a:b]
-
-    def attachment_data(self, offset: int, length: int) -> bytes:
-        body = self._reread(offset + 9, length - 9)
-        try:
-            return bytes(_attachment(body).data)
-        except _Bad as exc:
-            raise RecordingError(f"{self.path}: the file changed since it was opened: {exc}") from None
-
-    def _reread(self, pos: int, n: int) -> bytes:
-        try:
-            return self.file.read(pos, n)
-        except (_Bad, OSError) as exc:
-            raise RecordingError(f"{self.path}: the file changed since it was opened: {exc}") from None
-
-    def _inflate(self, chunk: ChunkInfo) -> bytes:
-        if chunk.number in self._cache:
-            return self._cache[chunk.number]
-        data = _decompress(self.file, chunk.offset, chunk.length)
-        if sum(map(len, self._cache.values())) + len(data) <= _CACHE_BYTES:
-            self._cache[chunk.number] = data
-        return data
-
-
-class _File:
-    """Positioned reads of an open file (a short read past a truncation raises _Bad)."""
-
-    def __init__(self, fh: Any, size: int):
-        self.fh = fh
-        self.fd = fh.fileno()
-        self.size = size
-
-    def read(self, pos: int, n: int) -> bytes:
-        out = os.pread(self.fd, n, pos) if n > 0 else b""
-        if len(out) != max(n, 0):
-            raise _Bad(f"the file ends at byte {pos + len(out)}, inside a record")
-        return out
-
-    def unpack(self, fmt: str, pos: int) -> tuple[Any, ...]:
-        return struct.unpack(fmt, self.read(pos, struct.calcsize(fmt)))
-
-    def crc(self, start: int, end: int) -> int:
-        crc, pos = 0, start
-        while pos < end:
-            n = min(16 << 20, end - pos)
-            crc = zlib.crc32(self.read(pos, n), crc)
-            pos += n
-        return crc
-
-    def close(self) -> None:
-        self.fh.close()
-
-
-# -- record bodies -------------------------------------------------------------------------
-def _chunk_header(f: _File, pos: int, length: int) -> tuple[int, int, int, int, str, int, int]:
-    """``(start, end, uncompressed size, crc, compression, data offset, data length)`` of the
-    chunk record at ``pos`` (its body is ``length`` bytes)."""
-    body = pos + 9
-    if length < 40:
-        raise _Bad("chunk record too short")
-    head = f.read(body, min(length, 48))
-    start, end, usize, crc, clen = struct.unpack_from("<QQQII", head, 0)
-    if clen > 8 or 32 + clen + 8 > length:
-        raise _Bad(f"bad compression field length {clen}")
-    try:
-        comp = head[32 : 32 + clen].decode("ascii")
-    except UnicodeDecodeError:
-        raise _Bad("compression name is not ASCII") from None
-    if comp not in ("", "zstd", "lz4"):
-        raise _Bad(f"unknown compression {comp!r}")
-    (dlen,) = struct.unpack_from("<Q", head, 32 + clen)
-    data = body + 32 + clen + 8
-    if data + dlen > body + length:
-        raise _Bad(f"chunk data of {dlen} B runs past its record ({length} B)")
-    if usize > _MAX_UNCOMPRESSED or start > end:
-        raise _Bad(f"implausible chunk header (uncompressed {usize} B, times {start}..{end})")
-    return start, end, usize, crc, comp, data, dlen
-
-
-def _decompress(f: _File, pos: int, length: int) -> bytes:
-    """The uncompressed records of the chunk record at ``pos``, CRC checked (or _Bad)."""
-    start, end, usize, crc, comp, data, dlen = _chunk_header(f, pos, length - 9)
-    chunk = Chunk(compression=comp, data=f.read(data, dlen), message_end_time=end,
-                  message_start_time=start, uncompressed_crc=crc, uncompressed_size=usize)
-    try:
-        stream, n = get_chunk_data_stream(chunk, validate_crc=True)
-        out = stream.read(n) if n else b""
-    except Exception as exc:  # CRC mismatch, a broken zstd/lz4 frame, a missing codec
-        raise _Bad(_reason(exc)) from None
-    if len(out) != usize:
-        raise _Bad(f"decompressed to {len(out)} B, the header says {usize} B")
-    return out
-
-
-def _reason(exc: BaseException) -> str:
-    text = str(exc) or type(exc).__name__
-    if "crc" in text.lower():
-        return f"CRC mismatch ({text})"
-    return f"cannot be decompressed ({type(exc).__name__}: {text})"
-
-
-def _inner_messages(data: bytes) -> Iterator[tuple[int, int, int, int]]:
-    """``(channel id, log time, data start, data end)`` of the message records in
-    uncompressed chunk records (already validated by :func:`_inner_records`)."""
-    pos, n = 0, len(data)
-    while pos < n:
-        op = data[pos]
-        (length,) = struct.unpack_from("<Q", data, pos + 1)
-        if op == Opcode.MESSAGE:
-            cid, _, log_time, _ = struct.unpack_from("<HIQQ", data, pos + 9)
-            yield cid, log_time, pos + 9 + 22, pos + 9 + length
-        pos += 9 + length
-
-
-def _inner_records(data: bytes) -> tuple[dict[int, int], list[Schema], list[Channel]]:
-    """Messages per channel, schemas and channels of uncompressed chunk records (or _Bad)."""
-    counts: dict[int, int] = {}
-    schemas: list[Schema] = []
-    channels: list[Channel] = []
-    pos, n = 0, len(data)
-    while pos < n:
-        if pos + 9 > n:
-            raise _Bad("a record inside the chunk is cut short")
-        op = data[pos]
-        (length,) = struct.unpack_from("<Q", data, pos + 1)
-        if pos + 9 + length > n:
-            raise _Bad(f"a record inside the chunk claims {length} B past the chunk's end")
-        if op == Opcode.MESSAGE:
-            if length < 22:
-                raise _Bad("a message record inside the chunk is too short")
-            (cid,) = struct.unpack_from("<H", data, pos + 9)
-            counts[cid] = counts.get(cid, 0) + 1
-        elif op == Opcode.SCHEMA:
-            schemas.append(_parse(Schema, data[pos + 9 : pos + 9 + length]))
-        elif op == Opcode.CHANNEL:
-            channels.append(_parse(Channel, data[pos + 9 : pos + 9 + length]))
-        pos += 9 + length
-    return counts, schemas, channels
-
-
-def _parse(kind: Any, body: bytes) -> Any:
-    """A record body parsed by the library's reader, bounded by its length (or _Bad)."""
-    try:
-        return kind.read(ReadDataStream(BytesIO(body)))
-    except Exception as exc:  # the library raises EndOfFile, struct.error, UnicodeDecodeError...
-        raise _Bad(f"{kind.__name__} record does not parse ({type(exc).__name__})") from None
-
-
-def _check_body(f: _File, pos: int, op: int, length: int) -> None:
-    """Cheap plausibility of a record body (used to resynchronise); raises _Bad."""
-    if op == Opcode.CHUNK:
-        _chunk_header(f, pos, length)
-        return
-    body = f.read(pos + 9, length) if op != Opcode.MESSAGE else f.read(pos + 9, min(length, 22))
-    if op == Opcode.MESSAGE_INDEX:
-        if length < 6:
-            raise _Bad("message index too short")
-        _, n = struct.unpack_from("<HI", body, 0)
-        if n % 16 or 6 + n > length:
-            raise _Bad("message index length")
-    elif op == Opcode.DATA_END:
-        if length != 4:
-            raise _Bad("data end length")
-    elif op == Opcode.FOOTER:
-        if length != 20:
-            raise _Bad("footer length")
-    elif op == Opcode.METADATA:
-        _parse(Metadata, body)
-    elif op == Opcode.ATTACHMENT:
-        _attachment(body)
-    elif op == Opcode.SCHEMA:
-        _parse(Schema, body)
-    elif op == Opcode.CHANNEL:
-        _parse(Channel, body)
-    elif op == Opcode.MESSAGE and length < 22:
-        raise _Bad("message too short")
-
-
-def _attachment(body: bytes) -> Attachment:
-    rec = _parse(Attachment, body)
-    (crc,) = struct.unpack_from("<I", body, len(body) - 4)
-    if crc and zlib.crc32(body[:-4]) != crc:
-        raise _Bad(f"attachment {rec.name!r}: CRC mismatch")
-    return rec
-
-
-# -- the scan ----------------------------------------------------------------------------------
-def _preview(head: bytes) -> str:
-    if all(32 <= c < 127 for c in head):
-        return repr(head.decode("ascii"))
-    return "bytes " + head.hex(" ")
-
-
-def _open(path: Path) -> _File:
-    """The recording opened for reading, or ConfigError naming what the path is."""
-    try:
-        st = os.stat(path)
-    except FileNotFoundError:
-        raise ConfigError("no such file", file=str(path)) from None
-    except OSError as exc:
-        raise ConfigError(f"cannot read it: {exc.strerror}", file=str(path)) from None
-    if not stat.S_ISREG(st.st_mode):
-        kind = (
-            "a directory" if stat.S_ISDIR(st.st_mode)
-            else "a FIFO" if stat.S_ISFIFO(st.st_mode)
-            else "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode)
-            else "not a regular file"
-        )
-        raise ConfigError(f"is {kind}, not an MCAP recording", file=str(path))
-    if st.st_size == 0:
-        raise ConfigError("is empty, not an MCAP recording", file=str(path))
-    try:
-        fh = open(path, "rb")  # noqa: SIM115 - owned by the returned _File
-    except OSError as exc:
-        raise ConfigError(f"cannot read it: {exc.strerror or exc}", file=str(path)) from None
-    try:
-        head = fh.read(8)
-    except OSError as exc:
-        fh.close()
-        raise ConfigError(f"cannot read it: {exc.strerror or exc}", file=str(path)) from None
-    if head != MAGIC:
-        fh.close()
-        raise ConfigError(f"starts with {_preview(head)}, not the MCAP magic: not a recording", file=str(path))
-    return _File(fh, st.st_size)
 
 
 def scan(path: str | Path) -> FileIndex:
@@ -406,7 +65,7 @@ def scan(path: str | Path) -> FileIndex:
         another profile (another program's): it says what it found.
     """
     path = Path(path)
-    f = _open(path)
+    f = open_recording(path)
     idx = FileIndex(path, f.size, _file=f)
     try:
         _Scanner(idx, f).run()
@@ -417,7 +76,7 @@ def scan(path: str | Path) -> FileIndex:
 
 
 class _Scanner:
-    def __init__(self, idx: FileIndex, f: _File):
+    def __init__(self, idx: FileIndex, f: RecordFile):
         self.idx = idx
         self.f = f
         self.size = idx.size
@@ -494,33 +153,33 @@ class _Scanner:
             if op == Opcode.CHUNK:
                 self.chunk(pos, length)
             elif op == Opcode.MESSAGE_INDEX:
-                _check_body(self.f, pos, op, length)
+                check_body(self.f, pos, op, length)
                 cid, n = self.f.unpack("<HI", pos + 9)
                 last = self.idx.blocks[-1] if self.idx.blocks else None
                 if isinstance(last, ChunkInfo):
                     last.indexed[cid] = n // 16
             elif op == Opcode.METADATA:
-                m = _parse(Metadata, self.f.read(pos + 9, length))
+                m = parse_record(Metadata, self.f.read(pos + 9, length))
                 self.idx.metadata.append((m.name, dict(m.metadata)))
             elif op == Opcode.ATTACHMENT:
-                a = _attachment(self.f.read(pos + 9, length))
+                a = attachment_record(self.f.read(pos + 9, length))
                 self.idx.attachments.append((a.name, a.media_type, pos, 9 + length))
             elif op == Opcode.SCHEMA:
-                s = _parse(Schema, self.f.read(pos + 9, length))
+                s = parse_record(Schema, self.f.read(pos + 9, length))
                 self.idx.schemas[s.id] = s
             elif op == Opcode.CHANNEL:
-                c = _parse(Channel, self.f.read(pos + 9, length))
+                c = parse_record(Channel, self.f.read(pos + 9, length))
                 self.idx.channels[c.id] = c
             elif op == Opcode.MESSAGE:
-                _check_body(self.f, pos, op, length)
+                check_body(self.f, pos, op, length)
                 (cid,) = self.f.unpack("<H", pos + 9)
-                self.idx.blocks.append(_Loose(pos, 9 + length, cid))
+                self.idx.blocks.append(Loose(pos, 9 + length, cid))
             elif op == Opcode.DATA_END:
-                _check_body(self.f, pos, op, length)
+                check_body(self.f, pos, op, length)
                 self.data_end_crc(pos)
             elif op == Opcode.FOOTER:
                 return None
-        except _Bad as exc:
+        except BadRecord as exc:
             if not self.plausible_at(end):  # the length itself is wrong: find the next record
                 return self.lost(pos, str(exc))
             self.fail(_WHAT.get(op, "record"), pos, 9 + length, str(exc))
@@ -528,8 +187,8 @@ class _Scanner:
 
     def chunk(self, pos: int, length: int) -> None:
         try:
-            start, end, *_ = _chunk_header(self.f, pos, length)
-        except _Bad as exc:
+            start, end, *_ = chunk_header(self.f, pos, length)
+        except BadRecord as exc:
             if not self.plausible_at(pos + 9 + length):
                 raise
             self.idx.blocks.append(ChunkInfo(len(self.idx.chunks), pos, 9 + length, None, None, damaged=str(exc)))
@@ -537,8 +196,8 @@ class _Scanner:
         info = ChunkInfo(len(self.idx.chunks), pos, 9 + length, start, end)
         self.idx.blocks.append(info)
         try:
-            counts, schemas, channels = _inner_records(_decompress(self.f, pos, 9 + length))
-        except _Bad as exc:
+            counts, schemas, channels = inner_records(decompress(self.f, pos, 9 + length))
+        except BadRecord as exc:
             info.damaged = str(exc)
             return
         info.counts = counts
@@ -568,8 +227,8 @@ class _Scanner:
             return False
         op, length = framed
         try:
-            _check_body(self.f, pos, op, length)
-        except _Bad:
+            check_body(self.f, pos, op, length)
+        except BadRecord:
             return False
         return depth == 0 or self.plausible_at(pos + 9 + length, depth - 1)
 
@@ -622,14 +281,14 @@ class _Scanner:
             body = self.f.read(pos + 9, length)
             try:
                 if op == Opcode.CHUNK_INDEX:
-                    self.summary_chunks.append(_chunk_index(body))
+                    self.summary_chunks.append(chunk_index(body))
                 elif op == Opcode.CHANNEL:
-                    c = _parse(Channel, body)
+                    c = parse_record(Channel, body)
                     self.summary_channels[c.id] = c
                 elif op == Opcode.SCHEMA:
-                    s = _parse(Schema, body)
+                    s = parse_record(Schema, body)
                     self.summary_schemas[s.id] = s
-            except (_Bad, struct.error) as exc:
+            except (BadRecord, struct.error) as exc:
                 self.fail("summary", pos, 9 + length, str(exc))
                 return
             pos += 9 + length
@@ -650,7 +309,7 @@ class _Scanner:
                 for cid, n in c.counts.items():
                     idx.counts[cid] = idx.counts.get(cid, 0) + n
         for b in idx.blocks:
-            if isinstance(b, _Loose):
+            if isinstance(b, Loose):
                 idx.counts[b.channel] = idx.counts.get(b.channel, 0) + 1
         described = [self.describe_chunk(c) for c in self.damaged_chunks()]
         regions = [self.describe_region(d) for d in idx.damage]
@@ -696,15 +355,6 @@ class _Scanner:
             b = after[0].start_ns if after else before[-1].end_ns
             return Damage(d.what, d.offset, d.length, d.reason, None, a, b, False)
         return d
-
-
-def _chunk_index(body: bytes) -> tuple[int, int, int, int, tuple[int, ...]]:
-    """``(chunk offset, length, start, end, channel ids)`` of a chunk index record."""
-    start, end, offset, length, n = struct.unpack_from("<QQQQI", body, 0)
-    if n % 10 or 36 + n > len(body):
-        raise _Bad("chunk index: bad message index map")
-    ids = tuple(struct.unpack_from("<H", body, 36 + k)[0] for k in range(0, n, 10))
-    return offset, length, start, end, ids
 
 
 _WHAT = {
