@@ -24,7 +24,7 @@ fmus: $(FMU_MANIFEST)
 install: $(STAMP) $(FMU_MANIFEST)
 
 demo: install
-	$(BIN)/bench accept test_cases/ -o reports
+	$(BIN)/bench accept test_cases/ -o reports --force
 
 test: install
 	$(BIN)/ruff check .

@@ -71,6 +71,7 @@ def synthesize(
     trajectory: Trajectory | None = None,
     faults: FaultSchedule | None = None,
     progress: Callable[[float, float], None] | None = None,
+    overwrite: bool = True,
 ) -> SynthSummary:
     """Synthesize a scenario into an MCAP recording.
 
@@ -93,6 +94,16 @@ def synthesize(
         ``options.fault_files``. Every window is recorded on ``/faults``.
     progress:
         Called with (bench seconds done, total) after each window.
+    overwrite:
+        Replace an existing file at ``out`` (``bench synth`` passes ``--force``).
+
+    Raises
+    ------
+    ConfigError
+        ``out`` cannot be written (a folder, read-only, exists without ``overwrite``,
+        another bench is writing it).
+    RecordingError
+        Writing failed part way (a full disk); the file keeps what was written.
     """
     options = options or SynthOptions()
     started = time.perf_counter()
@@ -105,7 +116,7 @@ def synthesize(
     epoch = epoch_of(scenario)
     total_ns = source.duration_ns
     window_ns = int(options.window_s * 1e9)
-    with RecordingWriter(out, epoch_ns=epoch) as rec:
+    with RecordingWriter(out, epoch_ns=epoch, overwrite=overwrite) as rec:
         rec.metadata("run_start", {"kind": "synth", **source.metadata(), "epoch_utc_ns": str(epoch),
                                    **host_metadata()})
         source.declare(rec)

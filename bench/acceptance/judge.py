@@ -46,6 +46,7 @@ class RunResult:
     raw: dict[str, RunValue] = field(default_factory=dict)  # metrics of comparison criteria
     overview: dict[str, Any] = field(default_factory=dict)
     timing: dict[str, float] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)  # for the record (a damaged source accepted by the user)
 
 
 @dataclass
@@ -116,6 +117,7 @@ def score_run(run: RunData, case: TestCase) -> RunResult:
     scorer = Scorer(run, replace(case.scoring, budget_ns=budget))
     integ = scorer.integrity()
     result = RunResult(str(run.path), case.id, variant, seed, Verdict.PASS, integ.bench, integ.dut, timing=integ.timing)
+    result.notes = list(integ.notes)
     criteria = [c for c in case.criteria if _judged(c, variant)]
     # the output-integrity defaults first: what a DUT's broken output keeps the bench from
     # measuring is the DUT's failure (FAIL), not the bench's (ERROR)

@@ -9,6 +9,10 @@ Exit codes: 0 every case PASS or MARGINAL; 1 a case FAILed; 2 a case file is mal
 (or bad usage); 3 a case could not be judged (ERROR), or a report could not be written.
 A case that crashes is that case's ERROR (:mod:`bench.acceptance.suite`); the suite goes
 on and every report is still written (a report that fails does not stop the others).
+
+Recordings are evidence: before anything runs, the recordings the suite would write are
+looked for, and an existing one is not overwritten without ``--force`` (nor, even with
+it, one another bench is writing); the reports (``results.json``...) are rewritten.
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ from bench.cli.app import EXIT_ERROR, EXIT_FAIL, EXIT_OK, EXIT_USAGE
 from bench.cli.progress import progress_bar
 from bench.textsafe import for_terminal
 
-__all__ = ["register", "exit_code"]
+__all__ = ["register", "exit_code", "recording_targets", "clear_recordings"]
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -40,6 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, action="append", help="run only this seed (repeatable)")
     p.add_argument("--runs", type=int, help="Monte Carlo runs per case and variant (seeds from the case's first)")
     p.add_argument("--clock", choices=("lockstep", "realtime"), help="override the cases' clock mode")
+    p.add_argument("--force", action="store_true", help="overwrite earlier recordings in the output folder")
     p.add_argument("--no-plots", action="store_true", help="do not draw error plots")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     p.set_defaults(handler=_run)
@@ -83,6 +88,42 @@ class _Reporter:
             print(for_terminal(f"  => {result.case_id}: {result.verdict} ({result.elapsed_s:.1f} s)"), file=sys.stderr)
 
 
+def recording_targets(cases, options) -> list[Path]:
+    """The recordings a suite with ``options`` would write for ``cases`` (loaded cases)."""
+    from bench.acceptance.runner import recording_name
+    from bench.acceptance.suite import prepare_case
+
+    out: list[Path] = []
+    for case in cases:
+        case = prepare_case(case, options)
+        folder = Path(options.out_dir) / "recordings" / case.id
+        for v in case.variants():
+            cv = case.for_variant(v)
+            out += [folder / recording_name(cv, seed) for seed in cv.run.seeds]
+    return out
+
+
+def clear_recordings(cases, options, force: bool) -> None:
+    """Refuse (ConfigError) when a recording the suite would write exists and ``force`` is
+    not given, or another bench is writing one; with ``force`` remove the old ones."""
+    from bench.record.lock import clear_outputs
+
+    clear_outputs(recording_targets(cases, options), force=force)
+
+
+def _loadable(files) -> list:
+    from bench.acceptance.case import load_case
+    from bench.errors import ConfigError
+
+    cases = []
+    for f in files:
+        try:
+            cases.append(load_case(f))
+        except ConfigError:  # the suite reports it as the case's error
+            continue
+    return cases
+
+
 def exit_code(cases) -> int:
     """0 all passed, 1 a FAIL, 2 a malformed case, 3 an ERROR (a malformed case first)."""
     from bench.acceptance.verdict import Verdict
@@ -99,6 +140,7 @@ def exit_code(cases) -> int:
 def _run(args: argparse.Namespace) -> int:
     from bench.acceptance.suite import SuiteOptions, collect_cases, run_suite
     from bench.paths import reports_dir, test_cases_dir
+    from bench.record.lock import preflight_folder
     from bench.report.outputs import crash_note, write_reports
     from bench.report.table import text_table
 
@@ -109,6 +151,8 @@ def _run(args: argparse.Namespace) -> int:
         print(f"bench accept: no test case files in {', '.join(paths)}", file=sys.stderr)
         return EXIT_USAGE
     options = SuiteOptions(out, tuple(args.seed) if args.seed else None, args.runs, args.clock)
+    preflight_folder(out)
+    clear_recordings(_loadable(files), options, args.force)
     started = time.perf_counter()
     when = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     results = run_suite(files, options, _Reporter(len(files), args.quiet))

@@ -2,9 +2,11 @@
 
 The DUT comes from a test case (``--case``: its DUT, links and clock) or from the
 options. Without ``--faults`` the recorded frames go out frame for frame; with a fault
-file the recorded samples are re-encoded with those wire faults instead. ``--start``
-seeks. The new recording carries the original truth, so it is judged like the original
-(``bench score``). Instead of a recording, field logs of a drive (``--can-log`` ASC/BLF,
+file the recorded samples are re-encoded with those wire faults instead. ``--start S``
+seeks: the replay is a run of its own whose bench time starts at 0 at bench time S of the
+recording. The new recording carries the original truth, so it is judged like the
+original (``bench score``); a replay of an unfinished or damaged recording is ERROR
+unless ``--accept-damaged-source``. Instead of a recording, field logs of a drive (``--can-log`` ASC/BLF,
 ``--imu-log``, ``--gnss-log``; ``--truth`` to score it) are re-emitted the same way, with
 ``--faults`` adding wire faults (docs/run_engine.md, "Replaying field logs").
 """
@@ -24,6 +26,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description=__doc__.split("\n\n")[1])
     p.add_argument("recording", nargs="?", help="MCAP recording of an earlier run (or give field logs)")
     p.add_argument("-o", "--out", required=True, help="recording of the replay")
+    p.add_argument("--force", action="store_true", help="overwrite an existing output file")
+    p.add_argument("--accept-damaged-source", action="store_true",
+                   help="judge the replay of an unfinished, damaged or ended-early recording anyway (recorded in "
+                   "the replay's metadata and its results); without it such a replay is ERROR")
     p.add_argument("--case", help="test case whose DUT, links and clock to use")
     p.add_argument("--estimator", help="in-process estimator name (instead of --case)")
     p.add_argument("--dut-command", help="external DUT command line with ICD placeholders (instead of --case)")
@@ -31,7 +37,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--faults", help="fault file ([[fault]] tables, wire layer): re-encode with these faults")
     p.add_argument("--clock", choices=("lockstep", "realtime"), default=None, help="clock mode (default lockstep)")
     p.add_argument("--speed", type=float, default=1.0, help="real-time speed factor")
-    p.add_argument("--start", type=float, default=0.0, help="seek: start at this bench time, s")
+    p.add_argument("--start", type=float, default=0.0,
+                   help="seek: replay from this bench time of the recording, s (a whole number of steps); the "
+                   "replay's bench time starts at 0 there (field logs: the DUT's first BENCH_TIME is this time)")
     p.add_argument("--step", type=float, default=10.0, help="scheduler step, ms (default 10)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     _field_log_options(p)
@@ -63,22 +71,41 @@ def _dut_config(path: str | None) -> dict:
     import json
     import tomllib
 
+    from bench.errors import ConfigError
+
     if path is None:
         return {}
-    text = Path(path).read_text()
-    return json.loads(text) if path.endswith(".json") else tomllib.loads(text)
+    p = Path(path)
+    if not p.is_file():
+        raise ConfigError("no such file" if not p.exists() else "is not a regular file", file=path, key="--dut-config")
+    try:
+        text = p.read_text(encoding="utf-8")
+        doc = json.loads(text) if path.endswith(".json") else tomllib.loads(text)
+    except (OSError, UnicodeDecodeError, ValueError) as exc:  # tomllib's and json's errors are ValueErrors
+        raise ConfigError(f"expected a {'JSON' if path.endswith('.json') else 'TOML'} table: {exc}", file=path,
+                          key="--dut-config") from None
+    if not isinstance(doc, dict):
+        raise ConfigError(f"expected a table, found {type(doc).__name__}", file=path, key="--dut-config")
+    return doc
 
 
 def _run(args: argparse.Namespace) -> int:
+    import math
+
     from bench.cli.progress import progress_bar
     from bench.errors import ConfigError
     from bench.faults.schedule import FaultSchedule
+    from bench.record.lock import preflight
     from bench.run.engine import execute
     from bench.run.replay import RecordingReplay
     from bench.run.spec import ClockSpec, DutSpec, LinkSpec
     from bench.sensors.suite import fault_schedule
     from bench.textsafe import for_terminal
 
+    for name in ("speed", "step"):
+        value = getattr(args, name)
+        if not math.isfinite(value) or value <= 0 or value > 1e6:
+            raise ConfigError(f"expected a positive number, found {value:g}", key=f"--{name}")
     links = LinkSpec()
     clock = ClockSpec(mode=args.clock or "lockstep", step_ns=round(args.step * 1e6), speed=args.speed)
     if args.case:
@@ -106,18 +133,57 @@ def _run(args: argparse.Namespace) -> int:
     logs = args.can_log or args.imu_log or args.gnss_log
     if bool(args.recording) == bool(logs):
         raise ConfigError("give either a recording or field logs (--can-log, --imu-log, --gnss-log)", key="recording")
+    if not math.isfinite(args.start) or args.start < 0 or args.start > 1e7:
+        raise ConfigError(f"expected a bench time from 0 s on, found {args.start:g}", key="--start")
+    start_ns = round(args.start * 1e9)
+    if start_ns % clock.step_ns:
+        raise ConfigError(f"the start {args.start:g} s must be a whole number of scheduler steps "
+                          f"({clock.step_ns / 1e6:g} ms)", key="--start")
+    for src in (args.recording, args.can_log, args.imu_log, args.gnss_log, args.truth):
+        if src and Path(src).exists() and Path(args.out).exists() and Path(src).samefile(args.out):
+            raise ConfigError(f"is the input {src} itself: a replay cannot overwrite what it reads", file=args.out,
+                              key="-o")
     if logs:
+        if args.accept_damaged_source:
+            raise ConfigError("--accept-damaged-source is for recordings; field logs have no such check",
+                              key="--accept-damaged-source")
         provider = _log_replay(args, clock.lockstep, faults)
     else:
-        provider = RecordingReplay(args.recording, lockstep=clock.lockstep, faults=faults,
-                                   start_ns=round(args.start * 1e9))
+        provider = RecordingReplay(args.recording, lockstep=clock.lockstep, faults=faults, start_ns=start_ns,
+                                   accept_damaged_source=args.accept_damaged_source)
+    preflight(args.out, force=args.force)  # the inputs first, then the output
+    if not logs:
+        _say_source(provider, args.quiet)
     with progress_bar("replay", (provider.duration_ns - provider.start_ns) * 1e-9, enabled=not args.quiet) as bar:
-        result = execute(provider, dut, links, clock, Path(args.out), progress=bar)
+        result = execute(provider, dut, links, clock, Path(args.out), progress=bar, overwrite=args.force)
     print(for_terminal(f"{result.path}: {result.status}" + (f" ({result.reason})" if result.reason else "")
                        + f", {result.bench_s:.1f} s of bench time in {result.elapsed_s:.1f} s"))
     if result.timing is not None:
         print(f"  timing: {result.timing.text()}", file=sys.stderr)
-    return 0 if result.ok else 3
+    if not result.ok:
+        return 3
+    source = getattr(provider, "provenance", {})
+    if source.get("source_complete") == "false" and source.get("accept_damaged_source") != "true":
+        print(f"bench replay: ERROR: {result.path} replays a source that cannot be trusted (see above); "
+              "bench score judges it ERROR", file=sys.stderr)
+        return 3
+    return 0
+
+
+def _say_source(provider, quiet: bool) -> None:
+    """Tell what the replay starts from: a seek, and a source that cannot be trusted."""
+    import json
+
+    from bench.record.provenance import ACCEPT_FLAG
+
+    if provider.seek_ns and not quiet:
+        print(f"bench replay: from bench time {provider.seek_ns / 1e9:g} s of the recording, which is bench time 0 "
+              f"of the replay ({provider.duration_ns / 1e9:g} s)", file=sys.stderr)
+    problems = json.loads(provider.provenance["source_problems"])
+    if problems:
+        verdict = ("judged anyway, as asked" if provider.provenance["accept_damaged_source"] == "true"
+                   else f"the replay will be judged ERROR (pass {ACCEPT_FLAG} to judge it anyway)")
+        print(f"bench replay: the source cannot be trusted: {'; '.join(problems)}; {verdict}", file=sys.stderr)
 
 
 def _log_replay(args: argparse.Namespace, lockstep: bool, faults):

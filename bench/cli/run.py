@@ -3,7 +3,8 @@
 Runs every variant and seed of the case (or those chosen), writes the recordings and the
 results under the output folder (``reports/runs/<case id>`` by default) and prints the
 verdicts. Exit codes: 0 PASS or MARGINAL, 1 the DUT failed, 2 usage or configuration
-error, 3 bench error (the run could not be judged).
+error, 3 bench error (the run could not be judged). Recordings of an earlier run in the
+output folder are not overwritten without ``--force`` (as ``bench accept``).
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--variant", help="run only this DUT variant")
     p.add_argument("--clock", choices=("lockstep", "realtime"), help="override the case's clock mode")
     p.add_argument("--speed", type=float, help="real-time speed factor (0.5 half speed, 2 twice as fast)")
+    p.add_argument("--force", action="store_true", help="overwrite earlier recordings in the output folder")
     p.add_argument("--no-plots", action="store_true", help="do not draw error plots")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     p.set_defaults(handler=_run)
@@ -38,9 +40,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _run(args: argparse.Namespace) -> int:
     from bench.acceptance.case import load_case
     from bench.acceptance.suite import SuiteOptions, run_case
-    from bench.cli.accept import _Reporter, exit_code
+    from bench.cli.accept import _Reporter, clear_recordings, exit_code
     from bench.errors import ConfigError
     from bench.paths import reports_dir
+    from bench.record.lock import preflight_folder
     from bench.report.outputs import write_reports
     from bench.report.table import text_table
 
@@ -57,6 +60,8 @@ def _run(args: argparse.Namespace) -> int:
         case = dataclasses.replace(case, clock=dataclasses.replace(case.clock, speed=args.speed))
     out = Path(args.out) if args.out else reports_dir() / "runs" / case.id
     options = SuiteOptions(out, tuple(args.seed) if args.seed else None, None, args.clock)
+    preflight_folder(out)
+    clear_recordings([case], options, args.force)
     started = time.perf_counter()
     when = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     result = run_case(case, options, _Reporter(1, args.quiet))

@@ -1,4 +1,10 @@
-"""``bench synth SCENARIO -o run.mcap``: truth and sensor streams into one recording."""
+"""``bench synth SCENARIO -o run.mcap``: truth and sensor streams into one recording.
+
+The output is checked before anything is built: an existing file is not overwritten
+without ``--force``, and a file another bench is writing is never touched (exit 2). A
+recording that cannot be written part way (a full disk) ends with exit 3, the file
+holding what was written.
+"""
 
 from __future__ import annotations
 
@@ -20,6 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("scenario", help="scenario id (e.g. S000) or path to a scenario TOML file")
     p.add_argument("-o", "--output", required=True, help="output MCAP file")
+    p.add_argument("--force", action="store_true", help="overwrite an existing output file")
     p.add_argument("--seed", type=int, default=0, help="run seed (default 0)")
     p.add_argument("--imu-rate", type=float, help="IMU rate in Hz (default: the scenario's, else 200)")
     p.add_argument("--imu-grade", help="IMU grade name in models/imu/ or a TOML path (default: the scenario's)")
@@ -37,10 +44,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from bench.record.lock import preflight
     from bench.scenario.loader import load_scenario
+    from bench.sensors.suite import fault_schedule
     from bench.synth import SynthOptions, synthesize
 
     scenario = load_scenario(args.scenario)
+    fault_schedule(scenario.doc, file=str(scenario.path), extra=tuple(args.faults))  # bad input first
+    preflight(args.output, force=args.force)  # then the output, before the trajectory is built
     options = SynthOptions(
         seed=args.seed,
         imu_rate_hz=args.imu_rate,
@@ -53,7 +64,7 @@ def _run(args: argparse.Namespace) -> int:
         print(f"bench synth: building the {scenario.id} trajectory ...", file=sys.stderr)
     traj = scenario.trajectory()
     with progress_bar(f"synth {scenario.id}", traj.duration_s, enabled=not args.quiet) as bar:
-        summary = synthesize(scenario, args.output, options, trajectory=traj, progress=bar)
+        summary = synthesize(scenario, args.output, options, trajectory=traj, progress=bar, overwrite=args.force)
     print(
         f"{summary.path}: {summary.scenario}, {summary.duration_s:.1f} s, {summary.distance_m / 1000:.3f} km, "
         f"top speed {summary.max_speed:.2f} m/s, in {summary.elapsed_s:.1f} s"

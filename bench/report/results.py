@@ -10,7 +10,7 @@ Layout (``results.json`` of ``bench accept``; ``bench score --json``)::
                               "paper", "variant", "relative_to", "monte_carlo",
                               "runs": [{"seed", "value", "verdict", "reason"}]}],
                 "runs": [{"recording", "variant", "seed", "verdict",
-                          "bench_issues", "dut_issues", "timing", "overview"}]}]}
+                          "bench_issues", "dut_issues", "notes", "timing", "overview"}]}]}
 
 Values are in the criterion's display unit (``value_si`` holds SI); an infinite value is
 the string ``"inf"``, an unmeasured one ``null``. Times of the run (wall clock) live in
@@ -94,6 +94,7 @@ def run_json(r: RunResult) -> dict[str, Any]:
             "verdict": str(r.verdict),
             "bench_issues": r.bench_issues,
             "dut_issues": r.dut_issues,
+            "notes": r.notes,
             "timing": r.timing,
             "criteria": {
                 k: {"value_si": v.value, "verdict": str(v.verdict), "reason": v.reason, "details": v.details}

@@ -18,6 +18,13 @@ that fails, is interrupted or is killed between chunks still leaves a readable f
 
 All but ``complete`` make the verdict ERROR: the bench could not judge the DUT.
 
+A recording that cannot be written (a full disk, a file size limit) ends the run with
+``error``: the file keeps what reached it (an unfinished recording) and, once the DUT
+is shut down, :class:`~bench.errors.RecordingError` is raised (``recording could not be
+written: No space left on device``). An output the bench may not write (a folder, a
+read-only one, an existing recording without ``overwrite``, one another bench is
+writing) is a :class:`~bench.errors.ConfigError` before anything starts.
+
 Whatever the ending, the DUT is shut down (an external DUT's whole process group: SIGTERM,
 the shutdown timeout, SIGKILL) and its last output lines, ``dut_exit``, the output tally
 and the run summary are recorded before ``run_end``; each of these cleanup steps is
@@ -38,7 +45,7 @@ import numpy as np
 from bench.clock import realtime_priority
 from bench.clock.pacing import LockstepClock, RealTimeClock, TimingLog
 from bench.dut.estimator import create_estimator
-from bench.errors import BenchError, ConfigError, DutError
+from bench.errors import BenchError, ConfigError, DutError, RecordingError
 from bench.faults.wire import WIRE_EVENTS_TOPIC
 from bench.frames import CanBatch
 from bench.record.mcap_io import RecordingWriter
@@ -105,13 +112,15 @@ def execute(
     attachments: list[tuple[str, bytes, str]] | None = None,
     window_ns: int = 10_000_000_000,
     progress: Callable[[float, float], None] | None = None,
+    overwrite: bool = True,
 ) -> RunResult:
     """The engine loop: traffic from ``provider`` to the DUT, everything recorded.
 
     The run starts at ``provider.start_ns`` (a whole number of steps; a replay may seek),
     where the DUT's first step and its start-up handshake are. Never raises for a failed
     DUT or link (the result and the recording say how the run ended); an interrupt is
-    raised again once the recording is finished.
+    raised again once the recording is finished, a recording that could not be written
+    as :class:`~bench.errors.RecordingError` (``overwrite``: replace an existing file).
     """
     started = time.perf_counter()
     dut.check()
@@ -130,7 +139,7 @@ def execute(
     clock = LockstepClock() if lockstep else RealTimeClock(clock_spec.speed)
     timing = TimingLog()
     result = RunResult(Path(out_path), "complete")
-    rec = RecordingWriter(out_path, epoch_ns=epoch)
+    rec = RecordingWriter(out_path, epoch_ns=epoch, overwrite=overwrite)
     dut_in: InProcessDut | None = None
     dut_ext: ExternalDut | None = None
     out: DutOutputRecorder | None = None
@@ -359,6 +368,8 @@ def execute(
         rec.close(result.status, result.reason)
     if interrupt is not None:
         raise interrupt
+    if rec.error is not None:
+        raise RecordingError(f"{out_path}: {rec.error}")
     return result
 
 

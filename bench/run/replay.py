@@ -8,6 +8,15 @@ which live in the samples) and applies the new wire faults instead of the old on
 recorded truth, samples, segments and fault windows are copied into the new recording,
 so the replayed run is scored like the original.
 
+A seek (``start_ns``) makes a run of its own that starts at the seek point: the DUT's
+bench time is 0 there (:mod:`bench.run.rebase` moves the traffic, the samples, the
+truth and the epoch), so a DUT aligns and is judged from the point it was started at.
+
+The source is read as far as it goes; when it was never finished, is damaged, ended
+early or is itself a replay of such a source, the replay says so in its ``run_start``
+(:mod:`bench.record.provenance`) and scoring makes it ERROR unless the replay was run
+with ``accept_damaged_source``; its length is then that of what the source holds.
+
 :class:`LogReplay` (:mod:`bench.run.logreplay`) takes field logs: a python-can log
 (ASC, BLF) with the sensor messages and byte logs of the IMU and GNSS lines.
 """
@@ -19,14 +28,16 @@ from typing import Any
 
 import numpy as np
 
-from bench.errors import ConfigError, RecordingError
+from bench.errors import ConfigError
 from bench.faults.schedule import FAULT_JSON_SCHEMA, FAULT_TOPIC, FaultSchedule, FaultWindow
 from bench.faults.wire import WIRE_EVENT_DTYPE
 from bench.frames import CanBatch, SerialBatch
 from bench.record.mcap_io import COLUMNAR, RecordingReader, RecordingWriter
+from bench.record.provenance import source_metadata
 from bench.record.wire_topics import CAN_TX, SERIAL_TX, read_can, read_serial
 from bench.run.fieldcan import with_lockstep_bit
 from bench.run.provider import COMMANDS_TOPIC, TrafficProvider
+from bench.run.rebase import rebase_can, rebase_records, rebase_segments, rebase_serial, rebase_window
 from bench.run.source import SEGMENTS_TOPIC
 from bench.run.traffic import BENCH_TIME_ID, Traffic, TrafficEncoder, _ordered, slice_window
 
@@ -50,7 +61,10 @@ class RecordingReplay(TrafficProvider):
     seed:
         Seed of the new wire faults (default: the original run's).
     start_ns:
-        Seek: replay from this bench time on (a whole number of scheduler steps).
+        Seek: replay from this bench time of the source on (whole milliseconds; the
+        engine's step must divide it); the replay's own bench time starts there at 0.
+    accept_damaged_source:
+        Judge the replay although its source cannot be trusted (recorded in ``run_start``).
     """
 
     def __init__(
@@ -61,22 +75,29 @@ class RecordingReplay(TrafficProvider):
         faults: FaultSchedule | None = None,
         seed: int | None = None,
         start_ns: int = 0,
+        accept_damaged_source: bool = False,
     ):
         self.path = Path(path)
-        self.start_ns = int(start_ns)
+        self.seek_ns = int(start_ns)
+        self.start_ns = 0  # the replay's own bench time starts at the seek point
         self.reader = RecordingReader(self.path)
         md = self.reader.metadata()
         start = md.get("run_start", {})
         if not start:
-            raise RecordingError(f"{self.path}: no run_start metadata: not a bench recording")
+            raise ConfigError("no run_start metadata: not the recording of a bench run", file=str(self.path))
         self.run_start = start
+        self.provenance = source_metadata(self.reader, accepted=accept_damaged_source)
+        if self.seek_ns < 0 or self.seek_ns % 1_000_000:
+            raise ConfigError(f"the start must be whole milliseconds from 0 on, found {self.seek_ns / 1e9:g} s",
+                              key="--start")
         self.topics = self.reader.topics()
         if CAN_TX not in self.topics and faults is None:
-            raise RecordingError(
-                f"{self.path}: no {CAN_TX}: a synth recording has samples but no traffic; "
-                "replay it with a fault schedule (even an empty one) to encode the samples"
+            raise ConfigError(
+                f"no {CAN_TX}: a synth recording has samples but no traffic; "
+                "replay it with a fault schedule (even an empty one) to encode the samples",
+                file=str(self.path),
             )
-        self.epoch_ns = int(start.get("epoch_utc_ns", 0))
+        self.epoch_ns = int(start.get("epoch_utc_ns", 0)) + self.seek_ns
         self.seed = int(seed if seed is not None else start.get("seed", 0))
         self.lockstep = lockstep
         self.faults = faults
@@ -87,14 +108,15 @@ class RecordingReplay(TrafficProvider):
                 and info.messages
                 and not name.startswith(("/wire/", "/dut/", "/bench/", "/faults/wire"))
             ):
-                self._columns[name] = self.reader.read_columnar(name)
-        self._json = {t: list(self.reader.iter_json(t)) for t in _COPIED_JSON if t in self.topics}
+                self._columns[name] = rebase_records(self.reader.read_columnar(name), self.seek_ns)
+        self._json = {t: self._rebased_json(t) for t in _COPIED_JSON if t in self.topics}
         self._schemas = {name: self.topics[name].schema for name in self._columns}
         original = (
             [FaultWindow.from_json(d) for _, d in self.reader.iter_json(FAULT_TOPIC)]
             if (FAULT_TOPIC in self.topics)
             else []
         )
+        original = [w for w in (rebase_window(w, self.seek_ns) for w in original) if w is not None]
         if faults is None:
             self.windows = original
             self._traffic = self._recorded_traffic()
@@ -127,9 +149,32 @@ class RecordingReplay(TrafficProvider):
             )
             self._traffic = None
         span = [int(v["t_ns"].max()) for v in self._columns.values() if len(v)]
-        if self._traffic is not None and len(self._traffic[0]):
-            span.append(int(self._traffic[0].t_ns.max()))
-        self.duration_ns = round(float(start.get("duration_s", 0)) * 1e9) or (max(span) if span else 0)
+        if self._traffic is not None:
+            span += [int(b.t_ns.max()) for b in self._traffic if len(b)]
+        recorded = max(span) if span else 0
+        total = round(float(start.get("duration_s", 0)) * 1e9)
+        if total and self.seek_ns >= total:
+            raise ConfigError(f"the start {self.seek_ns / 1e9:g} s lies past the end of the recording "
+                              f"({total / 1e9:g} s)", key="--start")
+        self.duration_ns = total - self.seek_ns if total else recorded
+        if self.provenance["source_complete"] == "false":  # what the source holds, not what it planned
+            self.duration_ns = min(self.duration_ns, recorded)
+        if self.duration_ns <= 0:
+            raise ConfigError(f"nothing to replay: the recording holds nothing from {self.seek_ns / 1e9:g} s on",
+                              key="--start" if self.seek_ns else "recording")
+
+    def _rebased_json(self, topic: str) -> list[tuple[int, Any]]:
+        """(log time, document) of a copied JSON topic, moved to the replay's bench time."""
+        out = []
+        for t_log, doc in self.reader.iter_json(topic):
+            if topic == SEGMENTS_TOPIC and isinstance(doc, dict):
+                doc = rebase_segments(doc, self.seek_ns)
+            elif topic == COMMANDS_TOPIC and isinstance(doc, dict) and "t_ns" in doc:
+                if int(doc["t_ns"]) < self.seek_ns:
+                    continue
+                doc = {**doc, "t_ns": int(doc["t_ns"]) - self.seek_ns}
+            out.append((t_log, doc))
+        return out
 
     def _recorded_traffic(self) -> tuple[CanBatch, SerialBatch, SerialBatch]:
         can = read_can(self.reader, CAN_TX)
@@ -146,7 +191,12 @@ class RecordingReplay(TrafficProvider):
         can = _ordered(can)
         if not self.lockstep or self.run_start.get("clock") != "lockstep":
             can = self._rebuild_bench_time(can)
-        return can, read_serial(self.reader, SERIAL_TX["imu"]), read_serial(self.reader, SERIAL_TX["gnss"])
+        s = self.seek_ns
+        return (
+            rebase_can(can, s),
+            rebase_serial(read_serial(self.reader, SERIAL_TX["imu"]), s, imu=True),
+            rebase_serial(read_serial(self.reader, SERIAL_TX["gnss"]), s, imu=False),
+        )
 
     def _rebuild_bench_time(self, can: CanBatch) -> CanBatch:
         """BENCH_TIME frames with this replay's lockstep bit (when the clock mode changed);
@@ -159,6 +209,9 @@ class RecordingReplay(TrafficProvider):
             "replay_of": str(self.path),
             "replay_mode": "verbatim" if self.faults is None else "re-encoded",
             **{k: str(self.run_start[k]) for k in keep if k in self.run_start},
+            "replay_start_s": f"{self.seek_ns / 1e9:g}",
+            "duration_s": f"{self.duration_ns / 1e9:.9g}",
+            **self.provenance,
         }
 
     def declare(self, rec: RecordingWriter) -> None:
@@ -167,7 +220,7 @@ class RecordingReplay(TrafficProvider):
         for topic, msgs in self._json.items():
             rec.json_topic(topic, self.topics[topic].schema, {"type": "object"})
             for t_log, doc in msgs:
-                rec.write_json(topic, t_log - self.epoch_ns, doc)
+                rec.write_json(topic, max(t_log - self.epoch_ns, 0), doc)
         rec.json_topic(FAULT_TOPIC, "bench.FaultWindow", FAULT_JSON_SCHEMA)
         for w in self.windows:
             rec.write_json(FAULT_TOPIC, w.start_ns, w.to_json())

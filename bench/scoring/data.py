@@ -76,6 +76,7 @@ class RunData:
     ----------
     path: the recording.
     complete: False when the file was never finished (the run was killed).
+    damage: one line per damaged stretch of the file that could not be read (skipped).
     run_start, run_end: metadata records (``run_end`` None if absent).
     truth: ``/truth`` records (TRUTH_DTYPE), sorted by ``t_ns``; None if absent.
     nav, quality: ``/dut/nav_solution`` and ``/dut/nav_quality`` records as recorded
@@ -90,6 +91,7 @@ class RunData:
 
     path: Path
     complete: bool = True
+    damage: list[str] = field(default_factory=list)
     run_start: dict[str, str] = field(default_factory=dict)
     run_end: dict[str, str] | None = None
     truth: np.ndarray | None = None
@@ -144,11 +146,18 @@ def _json(reader: RecordingReader, topics: dict[str, Any], topic: str) -> list[A
 
 
 def load_run(path: str | Path) -> RunData:
-    """Read a recording into :class:`RunData` (raises :class:`RecordingError` if unreadable)."""
-    reader = RecordingReader(path)
+    """Read a recording into :class:`RunData`, as far as it can be read (a damaged stretch
+    is skipped and listed in ``damage``; integrity makes that ERROR).
+
+    Raises :class:`~bench.errors.ConfigError` when the file is not a bench recording."""
+    with RecordingReader(path) as reader:
+        return _load(reader, Path(path))
+
+
+def _load(reader: RecordingReader, path: Path) -> RunData:
     topics = reader.topics()
     meta = reader.metadata()
-    run = RunData(path=Path(path), complete=reader.complete)
+    run = RunData(path=path, complete=reader.finished, damage=reader.damage_lines())
     run.run_start = dict(meta.get("run_start", {}))
     run.run_end = dict(meta["run_end"]) if "run_end" in meta else None
     truth = _columnar(reader, topics, TRUTH)

@@ -4,9 +4,12 @@ The recording says how the run ended (``run_end`` metadata: ``complete``, ``erro
 ``interrupted``, ``dut_error``, ``timing_budget``, ``link_lost``...) and, in real-time
 runs, how late the bench was at every step (``/bench/timing``). From these:
 
-* **bench issues** make the run's verdict ERROR: an unfinished recording, no
-  ``run_end``, an end status other than ``complete``/``dut_error``, steps later than the
-  timing budget, no truth, no DUT output at all;
+* **bench issues** make the run's verdict ERROR: an unfinished recording, a damaged one
+  (a stretch of it could not be read), no ``run_end``, an end status other than
+  ``complete``/``dut_error``, steps later than the timing budget, no truth, no DUT output
+  at all, a replay of a source recording that was unfinished, damaged, ended early or was
+  itself such a replay (:mod:`bench.record.provenance`) unless the replay was run with
+  ``--accept-damaged-source`` (then a **note** says so);
 * **DUT issues** make it FAIL: ``dut_error`` (the DUT crashed, hung or misbehaved on the
   link, as the run engine saw it).
 """
@@ -17,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bench.record.provenance import source_issues
 from bench.scoring.data import NAV_SOLUTION, TIMING, TRUTH, RunData
 
 __all__ = ["Integrity", "check_integrity", "DUT_STATUSES", "OK_STATUSES"]
@@ -30,19 +34,25 @@ DUT_STATUSES: tuple[str, ...] = ()
 
 @dataclass
 class Integrity:
-    """Issues found: ``bench`` ones (-> ERROR) and ``dut`` ones (-> FAIL)."""
+    """Issues found: ``bench`` ones (-> ERROR) and ``dut`` ones (-> FAIL); ``notes`` for
+    the record (a damaged source the user accepted)."""
 
     bench: list[str] = field(default_factory=list)
     dut: list[str] = field(default_factory=list)
     timing: dict[str, float] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
 
 
 def check_integrity(run: RunData, budget_ns: int | None = None) -> Integrity:
     """Bench-side and DUT-side issues of a run (``budget_ns``: real-time lateness budget)."""
     out = Integrity()
+    if run.damage:
+        more = f" (and {len(run.damage) - 3} more)" if len(run.damage) > 3 else ""
+        out.bench.append(f"the recording is damaged, {len(run.damage)} stretch(es) could not be read: "
+                         + "; ".join(run.damage[:3]) + more)
     if not run.complete:
         out.bench.append("the recording was never finished (the run was killed or crashed)")
-    if run.run_end is None:
+    elif run.run_end is None:
         out.bench.append("the recording has no run_end record")
     else:
         status = run.run_end.get("status", "")
@@ -51,6 +61,9 @@ def check_integrity(run: RunData, budget_ns: int | None = None) -> Integrity:
             out.dut.append(f"run ended with {status}" + (f": {reason}" if reason else ""))
         elif status not in OK_STATUSES:
             out.bench.append(f"run ended with status {status!r}" + (f": {reason}" if reason else ""))
+    issues, notes = source_issues(run.run_start)
+    out.bench += issues
+    out.notes += notes
     if run.truth is None or len(run.truth) < 2:
         out.bench.append(f"no truth recorded ({TRUTH})")
     if (run.nav is None or len(run.nav) == 0) and not out.dut:

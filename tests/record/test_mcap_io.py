@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from bench.errors import RecordingError
+from bench.errors import ConfigError, RecordingError
 from bench.record.mcap_io import RecordingReader, RecordingWriter, dtype_from_json, dtype_to_json
 
 DT = np.dtype([("t_ns", "<i8"), ("v", "<f8", (3,)), ("flag", "u1")])
@@ -70,7 +70,7 @@ def test_truncated_file_reads_up_to_the_damage(tmp_path):
 
 
 def test_missing_file_and_missing_topic(tmp_path):
-    with pytest.raises(RecordingError, match="not found"):
+    with pytest.raises(ConfigError, match="no such file"):
         RecordingReader(tmp_path / "none.mcap")
     p = tmp_path / "d.mcap"
     with RecordingWriter(p) as w:
