@@ -41,7 +41,7 @@ from bench.errors import CodecError, ConfigError
 from bench.frames import SerialBatch
 from bench.wire.imu import FRAME_DTYPE, FRAME_SIZE, refresh_crc
 from bench.wire.imu_stream import accept_frames
-from bench.wire.nmea import decode_fields, parse_sentence
+from bench.wire.nmea_fields import decode_fields, parse_sentence
 
 __all__ = ["imu_log_chunks", "NmeaLog", "read_nmea_log", "DAY_NS"]
 
