@@ -24,6 +24,7 @@ import numpy as np
 
 from bench.errors import ConfigError
 from bench.frames import CanBatch
+from bench.run.bytelogs import check_log_file
 from bench.run.traffic import BENCH_TIME_ID
 from bench.transport.canlog import read_can_log_file
 from bench.wire.can import codec
@@ -95,7 +96,7 @@ def place_can_log(
     """
     if can_ids not in ("icd", "all"):
         raise ConfigError(f"expected can_ids 'icd' or 'all', found {can_ids!r}", key="can_ids")
-    log = read_can_log_file(path)
+    log = read_can_log_file(check_log_file(path, "CAN log"))
     file = str(path)
     f = log.frames
     keep = np.ones(len(f), bool)

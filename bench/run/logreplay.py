@@ -30,7 +30,7 @@ from bench.faults.schedule import FAULT_JSON_SCHEMA, FAULT_TOPIC, FaultSchedule
 from bench.faults.wire import WIRE_EVENT_DTYPE, WireFaultInjector
 from bench.frames import CanBatch, SerialBatch
 from bench.record.mcap_io import RecordingWriter
-from bench.run.bytelogs import NmeaLog, imu_log_chunks, read_nmea_log
+from bench.run.bytelogs import NmeaLog, imu_log_chunks, read_log_file, read_nmea_log
 from bench.run.fieldcan import BENCH_TO_DUT, DUT_TO_BENCH, place_can_log, with_lockstep_bit
 from bench.run.fieldtruth import TruthTrack, TruthWriter
 from bench.run.provider import COMMANDS_TOPIC, TrafficProvider
@@ -88,15 +88,6 @@ class FieldLogs:
         return {k: Path(p) for k, p in (("can", self.can), ("imu", self.imu), ("gnss", self.gnss)) if p is not None}
 
 
-def _read_bytes(path: Path, what: str) -> bytes:
-    try:
-        return path.read_bytes()
-    except FileNotFoundError:
-        raise ConfigError(f"{what} not found", file=str(path)) from None
-    except OSError as exc:
-        raise ConfigError(f"cannot read {what}: {exc}", file=str(path)) from None
-
-
 class LogReplay(TrafficProvider):
     """The traffic of field logs (see the module docstring and docs/run_engine.md).
 
@@ -147,7 +138,7 @@ class LogReplay(TrafficProvider):
         self.injector = WireFaultInjector(FaultSchedule(self.windows), seed) if self.windows else None
         can, logged_epochs = self._can() if logs.can else (CanBatch.empty(), np.zeros(0, np.int64))
         imu = self._imu() if logs.imu else SerialBatch.empty()
-        nmea = read_nmea_log(_read_bytes(logs.gnss, "NMEA byte log"), file=str(logs.gnss)) if logs.gnss else None
+        nmea = read_nmea_log(read_log_file(logs.gnss, "NMEA byte log"), file=str(logs.gnss)) if logs.gnss else None
         self.epoch_ns, self.epoch_source = self._epoch(logged_epochs, can, imu, nmea)
         gnss = self._gnss(nmea) if nmea is not None else SerialBatch.empty()
         last = max([int(b.t_ns[-1]) for b in (can, imu, gnss) if len(b)], default=0)
@@ -204,7 +195,8 @@ class LogReplay(TrafficProvider):
     def _imu(self) -> SerialBatch:
         path = self.logs.imu
         assert path is not None
-        batch, info = imu_log_chunks(_read_bytes(path, "IMU byte log"), file=str(path), shift_ns=self.logs.imu_shift_ns)
+        data = read_log_file(path, "IMU byte log")
+        batch, info = imu_log_chunks(data, file=str(path), shift_ns=self.logs.imu_shift_ns)
         self.facts["imu"] = info
         return batch
 
