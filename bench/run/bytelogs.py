@@ -43,6 +43,7 @@ import numpy as np
 
 from bench.errors import CodecError, ConfigError
 from bench.frames import SerialBatch
+from bench.wire.bits import INT64_MAX_US
 from bench.wire.imu import FRAME_DTYPE, FRAME_SIZE, refresh_crc
 from bench.wire.imu_stream import accept_frames
 from bench.wire.nmea_fields import days_since_1970, decode_fields, parse_sentence
@@ -63,6 +64,7 @@ DAY_NS = 86_400_000_000_000
 #: Largest field log read (2 GiB: 8 hours of IMU frames at 1000 Hz).
 MAX_LOG_BYTES = 2 << 30
 _OFFS = np.arange(FRAME_SIZE)
+_MAX_SHIFT_NS = 100 * 366 * DAY_NS  # a century
 _TIMED = ("RMC", "GGA", "GST", "ZDA")
 _MAGIC = {b"\x89MCAP": "an MCAP recording (give it as the recording, not as a field log)", b"LOGG": "a BLF CAN log"}
 
@@ -162,6 +164,8 @@ def imu_log_chunks(data: bytes, *, file: str, shift_ns: int = 0) -> tuple[Serial
         raise ConfigError("the IMU byte log is empty", file=file)
     if shift_ns % 1000:
         raise ConfigError(f"the IMU time shift must be whole microseconds, found {shift_ns} ns", file=file)
+    if abs(shift_ns) > _MAX_SHIFT_NS:
+        raise ConfigError(f"the IMU time shift of {shift_ns / 1e9:g} s is beyond a century", file=file)
     starts, false_starts = _frame_starts(buf)
     if starts.size == 0:
         raise ConfigError(
@@ -174,6 +178,10 @@ def imu_log_chunks(data: bytes, *, file: str, shift_ns: int = 0) -> tuple[Serial
     t_us = rec["time_us"].astype(np.int64)
     if shift_ns:
         t_us = t_us + shift_ns // 1000
+        if t_us.max() > INT64_MAX_US:
+            raise ConfigError(
+                f"the IMU time shift of {shift_ns / 1e9:g} s moves frames past int64 nanoseconds", file=file
+            )
         keep = t_us >= 0
         rec["time_us"] = np.maximum(t_us, 0).astype(np.uint64)
         refresh_crc(rows)
@@ -237,10 +245,10 @@ class NmeaLog:
 
         Raises ConfigError when the log has no date and ``epoch_utc_ns`` is None.
         """
-        tod, dates = self.tod_ns, self.dates
-        n = tod.size
-        day = np.zeros(n, np.int64)
-        known = np.flatnonzero(dates >= 0)
+        tod, dates = self.tod_ns.tolist(), self.dates.tolist()
+        n = len(tod)
+        day = [0] * n  # Python integers: midnights added never overflow
+        known = np.flatnonzero(self.dates >= 0)
         if known.size:
             a = int(known[0])
             day[a] = dates[a]
@@ -254,21 +262,24 @@ class NmeaLog:
                     file=self.file,
                 )
             a = 0
-            first = epoch_utc_ns // DAY_NS * DAY_NS + int(tod[0])
+            first = epoch_utc_ns // DAY_NS * DAY_NS + tod[0]
             if first < epoch_utc_ns - DAY_NS // 2:
                 first += DAY_NS
             elif first > epoch_utc_ns + DAY_NS // 2:
                 first -= DAY_NS
-            day[0] = first - int(tod[0])
+            day[0] = first - tod[0]
         half = DAY_NS // 2
         for e in range(a + 1, n):
-            if dates[e] >= 0:
-                day[e] = dates[e]
-            else:
-                day[e] = day[e - 1] + (DAY_NS if tod[e] < tod[e - 1] - half else 0)
+            day[e] = dates[e] if dates[e] >= 0 else day[e - 1] + (DAY_NS if tod[e] < tod[e - 1] - half else 0)
         for e in range(a - 1, -1, -1):
             day[e] = day[e + 1] - (DAY_NS if tod[e] > tod[e + 1] + half else 0)
-        return day + tod
+        utc = [d + t for d, t in zip(day, tod, strict=True)]
+        bad = [i for i, u in enumerate(utc) if not -(2**63) <= u < 2**63]
+        if bad:
+            raise ConfigError(
+                f"NMEA epoch {bad[0]}: its UTC (date and midnights passed) does not fit int64 ns", file=self.file
+            )
+        return np.array(utc, np.int64)
 
     def batch(self, t_ns: np.ndarray) -> SerialBatch:
         """The chunks due at ``t_ns`` (N,) (made non-decreasing: the line keeps its byte order)."""

@@ -181,3 +181,11 @@ def test_a_bad_zda_in_a_field_log_is_counted_and_reported(tmp_path, zda, capsys)
     argv = ["replay", "--gnss-log", str(path), "--estimator", "dead_reckoning", "-q", "-o", str(tmp_path / "o.mcap")]
     assert cli(argv) == 2
     assert "do not decode" in capsys.readouterr().err
+
+
+def test_huge_imu_shifts_are_refused_not_overflowed(tmp_path):
+    data = _files(tmp_path)["imu"].read_bytes()
+    for shift in (10**22, -(10**22), (2**63 // 1000) * 1000):  # an OverflowError before
+        with pytest.raises(ConfigError, match="IMU time shift") as err:
+            bytelogs.imu_log_chunks(data, file="imu.bin", shift_ns=shift)
+        assert "imu.bin" in str(err.value)
