@@ -156,6 +156,8 @@ class ImuStreamDecoder:
 
         def rx_of(idx):
             idx = np.asarray(idx, np.int64)
+            if times.size == 1 and (n_held == 0 or not idx.size or idx.min() >= n_held):
+                return np.full(idx.shape, times[0], np.int64)  # one read, nothing held: one time
             out = np.empty(idx.shape, np.int64)
             old = idx < n_held
             out[old] = held_rx[idx[old]]
