@@ -143,7 +143,8 @@ class ImuStreamDecoder:
         return self._feed(batch.buf, batch.offsets[1:], batch.t_ns)
 
     def flush(self, rx_ns: int = 0) -> None:
-        """End of stream: what is held (cut candidates) and the run in progress are bad runs."""
+        """End of stream: what is held (cut candidates) and the run in progress are bad runs
+        (stamped with the arrival of their last byte; ``rx_ns`` is not needed)."""
         buf, n = self._buf, self._buf.size
         if n:
             syncs = np.flatnonzero((buf[:-1] == 0xAA) & (buf[1:] == 0x55))

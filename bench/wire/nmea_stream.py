@@ -167,7 +167,8 @@ class NmeaStreamDecoder:
         return self._drain()
 
     def flush(self, rx_ns: int = 0) -> np.ndarray:
-        """End of stream: count what is left, close the epoch in progress, return its fix."""
+        """End of stream: count what is left (stamped with the arrival of its last byte;
+        ``rx_ns`` is not needed), close the epoch in progress, return its fix."""
         self._scan(b"", rx_ns, final=True)
         self._close_run()
         self._close()
