@@ -43,6 +43,7 @@ _FIELD_COUNTS = {"RMC": 13, "GGA": 14, "GST": 8, "VTG": 9, "ZDA": 6}
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)\Z")
 _UINT = re.compile(r"\d+\Z")
 _HEX2 = re.compile(rb"[0-9A-Fa-f]{2}\Z")
+_RESERVED = re.compile(rb"[^\x20\x22\x23\x25-\x29\x2b-\x7e]")  # non-printable, '!', '$', '*'
 _TIME = re.compile(r"(\d\d)(\d\d)(\d\d(?:\.\d*)?)\Z")
 _LAT = re.compile(r"(\d\d)(\d\d(?:\.\d*)?)\Z")
 _LON = re.compile(r"(\d{3})(\d\d(?:\.\d*)?)\Z")
@@ -70,7 +71,7 @@ def parse_sentence(line: bytes, *, talkers: tuple[str, ...] = TALKERS) -> tuple[
     if star < 0 or len(text) - star != 3:
         raise CodecError("format", f"NMEA sentence without '*hh' checksum: {line[-12:]!r}")
     body = text[1:star]
-    if any(c < 0x20 or c > 0x7E or c in b"$*!" for c in body):
+    if _RESERVED.search(body):
         raise CodecError("format", f"NMEA sentence holds a reserved or non-printable character: {line[:40]!r}")
     if not _HEX2.match(text[star + 1 :]):
         raise CodecError("format", f"NMEA checksum {text[star + 1 :]!r} is not two hexadecimal digits")
