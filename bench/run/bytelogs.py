@@ -61,12 +61,29 @@ __all__ = [
 ]
 
 DAY_NS = 86_400_000_000_000
-#: Largest field log read (2 GiB: 8 hours of IMU frames at 1000 Hz).
-MAX_LOG_BYTES = 2 << 30
+#: Largest field log read (1 GiB, the bound of ``log_file`` in the bench's configuration layer).
+MAX_LOG_BYTES = 1 << 30
 _OFFS = np.arange(FRAME_SIZE)
 _MAX_SHIFT_NS = 100 * 366 * DAY_NS  # a century
 _TIMED = ("RMC", "GGA", "GST", "ZDA")
 _MAGIC = {b"\x89MCAP": "an MCAP recording (give it as the recording, not as a field log)", b"LOGG": "a BLF CAN log"}
+_KINDS = (
+    (stat.S_ISDIR, "a directory"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISFIFO, "a FIFO (named pipe)"),
+    (stat.S_ISSOCK, "a socket"),
+)
+
+
+def _size(n: float) -> str:
+    if n < 1024:
+        return f"{int(n)} bytes"
+    for unit in ("KiB", "MiB", "GiB", "TiB"):
+        n /= 1024.0
+        if n < 1024 or unit == "TiB":
+            break
+    return f"{n:.3g} {unit}"
 
 
 def check_log_file(path: str | Path, what: str) -> Path:
@@ -78,21 +95,13 @@ def check_log_file(path: str | Path, what: str) -> Path:
     except FileNotFoundError:
         raise ConfigError(f"{what} not found", file=str(path)) from None
     except OSError as exc:
-        raise ConfigError(f"cannot read {what}: {exc.strerror or exc}", file=str(path)) from None
+        raise ConfigError(f"cannot read the {what}: {exc.strerror or exc}", file=str(path)) from None
     if not stat.S_ISREG(st.st_mode):
-        kind = (
-            "a directory" if stat.S_ISDIR(st.st_mode)
-            else "a character device" if stat.S_ISCHR(st.st_mode)
-            else "a block device" if stat.S_ISBLK(st.st_mode)
-            else "a FIFO (named pipe)" if stat.S_ISFIFO(st.st_mode)
-            else "a socket" if stat.S_ISSOCK(st.st_mode)
-            else "not a regular file"
-        )
-        raise ConfigError(f"expected the {what} as a regular file, found {kind}", file=str(path))
+        kind = next((name for test, name in _KINDS if test(st.st_mode)), "not a regular file")
+        raise ConfigError(f"is {kind}, not a {what}", file=str(path))
     if st.st_size > MAX_LOG_BYTES:
         raise ConfigError(
-            f"the {what} has {st.st_size} bytes, more than the {MAX_LOG_BYTES >> 30} GiB a replay reads: split it",
-            file=str(path),
+            f"is {_size(st.st_size)}, more than the {_size(MAX_LOG_BYTES)} limit of a {what}", file=str(path)
         )
     return path
 
@@ -104,9 +113,9 @@ def read_log_file(path: str | Path, what: str) -> bytes:
         with path.open("rb") as fh:
             data = fh.read(MAX_LOG_BYTES + 1)
     except OSError as exc:
-        raise ConfigError(f"cannot read {what}: {exc.strerror or exc}", file=str(path)) from None
+        raise ConfigError(f"cannot read the {what}: {exc.strerror or exc}", file=str(path)) from None
     if len(data) > MAX_LOG_BYTES:
-        raise ConfigError(f"the {what} grew past {MAX_LOG_BYTES >> 30} GiB while read", file=str(path))
+        raise ConfigError(f"grew past the {_size(MAX_LOG_BYTES)} limit of a {what} while read", file=str(path))
     return data
 
 

@@ -88,6 +88,10 @@ class FieldLogs:
         return {k: Path(p) for k, p in (("can", self.can), ("imu", self.imu), ("gnss", self.gnss)) if p is not None}
 
 
+def _read_bytes(path: Path, what: str) -> bytes:
+    return read_log_file(path, what)  # a regular file of at most 1 GiB
+
+
 class LogReplay(TrafficProvider):
     """The traffic of field logs (see the module docstring and docs/run_engine.md).
 
@@ -138,7 +142,7 @@ class LogReplay(TrafficProvider):
         self.injector = WireFaultInjector(FaultSchedule(self.windows), seed) if self.windows else None
         can, logged_epochs = self._can() if logs.can else (CanBatch.empty(), np.zeros(0, np.int64))
         imu = self._imu() if logs.imu else SerialBatch.empty()
-        nmea = read_nmea_log(read_log_file(logs.gnss, "NMEA byte log"), file=str(logs.gnss)) if logs.gnss else None
+        nmea = read_nmea_log(_read_bytes(logs.gnss, "NMEA byte log"), file=str(logs.gnss)) if logs.gnss else None
         self.epoch_ns, self.epoch_source = self._epoch(logged_epochs, can, imu, nmea)
         gnss = self._gnss(nmea) if nmea is not None else SerialBatch.empty()
         last = max([int(b.t_ns[-1]) for b in (can, imu, gnss) if len(b)], default=0)
@@ -195,8 +199,7 @@ class LogReplay(TrafficProvider):
     def _imu(self) -> SerialBatch:
         path = self.logs.imu
         assert path is not None
-        data = read_log_file(path, "IMU byte log")
-        batch, info = imu_log_chunks(data, file=str(path), shift_ns=self.logs.imu_shift_ns)
+        batch, info = imu_log_chunks(_read_bytes(path, "IMU byte log"), file=str(path), shift_ns=self.logs.imu_shift_ns)
         self.facts["imu"] = info
         return batch
 

@@ -117,14 +117,14 @@ def _files(tmp_path: Path) -> dict[str, Path]:
 @pytest.mark.parametrize(
     ("kind", "name", "found"),
     [
-        ("imu", "dir", "found a directory"),
-        ("gnss", "dir", "found a directory"),
-        ("can", "dir", "found a directory"),
-        ("imu", "zero", "found a character device"),
-        ("gnss", "zero", "found a character device"),
-        ("can", "zero", "found a character device"),
-        ("gnss", "fifo", r"found a FIFO \(named pipe\)"),
-        ("imu", "fifo", r"found a FIFO \(named pipe\)"),
+        ("imu", "dir", "is a directory"),
+        ("gnss", "dir", "is a directory"),
+        ("can", "dir", "is a directory"),
+        ("imu", "zero", "is a character device"),
+        ("gnss", "zero", "is a character device"),
+        ("can", "zero", "is a character device"),
+        ("gnss", "fifo", r"is a FIFO \(named pipe\)"),
+        ("imu", "fifo", r"is a FIFO \(named pipe\)"),
         ("imu", "text", "found text whose lines end in LF alone, starting 'hello world'"),
         ("imu", "nmea", r"found 10 NMEA sentences .*gnss line"),
         ("gnss", "binary", r"found binary data \(\d+ of its first 4000 bytes not printable"),
@@ -151,11 +151,14 @@ def test_the_command_refuses_them_with_exit_2_and_no_traceback(tmp_path, capsys)
     assert not (tmp_path / "o.mcap").exists()
 
 
-def test_a_log_bigger_than_the_limit_is_refused_before_it_is_read(tmp_path, monkeypatch):
-    monkeypatch.setattr(bytelogs, "MAX_LOG_BYTES", 100)
-    path = _write(tmp_path / "big.nmea", b"x" * 101)
-    with pytest.raises(ConfigError, match="101 bytes, more than"):
-        LogReplay(FieldLogs(gnss=path), lockstep=True)
+def test_a_log_bigger_than_the_limit_is_refused_before_it_is_read(tmp_path):
+    path = tmp_path / "big.nmea"
+    with path.open("wb") as fh:
+        fh.truncate(3 << 30)  # 3 GiB, sparse: nothing is written
+    for kind in ("gnss", "imu", "can"):
+        with pytest.raises(ConfigError, match=r"is 3 GiB, more than the 1 GiB limit") as err:
+            LogReplay(FieldLogs(**{kind: path}), lockstep=True)
+        assert str(path) in str(err.value)
 
 
 @pytest.mark.parametrize(
