@@ -114,6 +114,8 @@ class CanBatch:
         self.length = _column(length, np.uint8, n)
         if n and int(self.length.max()) > data.shape[1]:
             raise ValueError(f"length up to {int(self.length.max())} does not fit payload width {data.shape[1]}")
+        if n and int(self.length.max()) > 64:
+            raise ValueError(f"a CAN payload holds at most 64 bytes, found length {int(self.length.max())}")
         self.fd = _column(False if fd is None else fd, bool, n)
 
     def __len__(self) -> int:
@@ -207,6 +209,8 @@ class SerialBatch:
         self.buf = np.frombuffer(buf, np.uint8) if isinstance(buf, bytes | bytearray) else np.asarray(buf, np.uint8)
         if self.offsets.shape[0] != self.t_ns.shape[0] + 1 or self.offsets[0] != 0 or self.offsets[-1] != self.buf.size:
             raise ValueError("offsets must start at 0, end at len(buf) and have one entry more than t_ns")
+        if self.offsets.size > 2 and np.any(self.offsets[1:] < self.offsets[:-1]):
+            raise ValueError("offsets must not decrease (a chunk cannot have a negative length)")
 
     def __len__(self) -> int:
         return int(self.t_ns.shape[0])

@@ -16,39 +16,71 @@ IMU (ICD 3)
     earlier one (a serial line never reorders), so the bytes keep their order.
 
 NMEA (ICD 4)
-    A sentence runs from ``$`` to the first CR LF with no ``$`` between (the framing of
+    A sentence runs from ``$`` to the first CR LF with no ``$`` between, within 82
+    characters (:func:`bench.wire.nmea_stream.frame_events`, the framing of
     :class:`~bench.wire.nmea_stream.NmeaStreamDecoder`). Each chunk is one sentence plus
     the bytes before it outside any sentence; bytes after the last sentence join the last
-    chunk. Sentences whose checksum holds and whose time field parses (RMC, GGA, GST,
-    ZDA; any talker) give the UTC time of day of their epoch; the others (VTG, GSA, GSV,
-    broken sentences) belong to the epoch in progress (the first epoch, for those before
-    any time). The date of an epoch comes from its ZDA or RMC; an epoch without one takes
-    the date of the epoch before, moved on a day when the time of day falls back by more
-    than 12 h (midnight), and epochs before the first date take it backwards the same way.
-    A log without any date takes the day from the UTC of bench time zero (the day that
-    puts the first epoch within 12 h of it).
+    chunk. Sentences that decode (RMC, GGA, GST, ZDA; any talker; checksum, format and
+    every field's range as the stream decoder checks them) give the UTC time of day of
+    their epoch; the others (VTG, GSA, GSV, broken sentences, counted by kind) belong to
+    the epoch in progress (the first epoch, for those before any time). The date of an
+    epoch comes from its ZDA or RMC; an epoch without one takes the date of the epoch
+    before, moved on a day when the time of day falls back by more than 12 h (midnight),
+    and epochs before the first date take it backwards the same way. A log without any
+    date takes the day from the UTC of bench time zero (the day that puts the first epoch
+    within 12 h of it).
 """
 
 from __future__ import annotations
 
-import calendar
-import re
+from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
 
 from bench.errors import CodecError, ConfigError
 from bench.frames import SerialBatch
+from bench.wire.bits import INT64_MAX_US
 from bench.wire.imu import FRAME_DTYPE, FRAME_SIZE, refresh_crc
 from bench.wire.imu_stream import accept_frames
-from bench.wire.nmea import decode_fields, parse_sentence
+from bench.wire.nmea_fields import days_since_1970, decode_fields, parse_sentence
+from bench.wire.nmea_stream import frame_events
 
-__all__ = ["imu_log_chunks", "NmeaLog", "read_nmea_log", "DAY_NS"]
+__all__ = [
+    "imu_log_chunks",
+    "NmeaLog",
+    "read_nmea_log",
+    "DAY_NS",
+    "describe",
+]
 
 DAY_NS = 86_400_000_000_000
 _OFFS = np.arange(FRAME_SIZE)
-_SENTENCE = re.compile(rb"\$[^$]*?\r\n")
+_MAX_SHIFT_NS = 100 * 366 * DAY_NS  # a century
 _TIMED = ("RMC", "GGA", "GST", "ZDA")
+_MAGIC = {b"\x89MCAP": "an MCAP recording (give it as the recording, not as a field log)", b"LOGG": "a BLF CAN log"}
+
+
+def describe(data: bytes) -> str:
+    """What a file that is not the log expected looks like, in a few words."""
+    head = data[:4096]
+    for magic, name in _MAGIC.items():
+        if head.startswith(magic):
+            return name
+    buf = np.frombuffer(data[:1 << 20], np.uint8)
+    starts, _ = accept_frames(buf)
+    if starts.size:
+        return f"{starts.size} ICD IMU frames in its first MiB (the imu line's log?)"
+    events, _ = frame_events(data[:1 << 20], final=True)
+    lines = sum(1 for kind, _, _ in events if kind == "line")
+    if lines:
+        return f"{lines} NMEA sentences in its first MiB (the gnss line's log?)"
+    printable = np.count_nonzero((buf >= 0x20) & (buf < 0x7F) | (buf == 9) | (buf == 10) | (buf == 13))
+    if buf.size and printable >= 0.95 * buf.size:
+        first = data[: data.find(b"\n")] if b"\n" in data[:200] else data[:60]
+        ends = "in CR LF" if b"\r\n" in head else "in LF alone" if b"\n" in head else "nowhere"
+        return f"text whose lines end {ends}, starting {first[:60].decode('ascii', 'backslashreplace')!r}"
+    return f"binary data ({buf.size - printable} of its first {buf.size} bytes not printable text)"
 
 
 def _frame_starts(buf: np.ndarray) -> tuple[np.ndarray, int]:
@@ -83,11 +115,13 @@ def imu_log_chunks(data: bytes, *, file: str, shift_ns: int = 0) -> tuple[Serial
         raise ConfigError("the IMU byte log is empty", file=file)
     if shift_ns % 1000:
         raise ConfigError(f"the IMU time shift must be whole microseconds, found {shift_ns} ns", file=file)
+    if abs(shift_ns) > _MAX_SHIFT_NS:
+        raise ConfigError(f"the IMU time shift of {shift_ns / 1e9:g} s is beyond a century", file=file)
     starts, false_starts = _frame_starts(buf)
     if starts.size == 0:
         raise ConfigError(
             f"no ICD IMU frame (AA 55, length 36, CRC-16 over bytes 2..39) in {buf.size} bytes: "
-            "not a byte log of the imu line",
+            f"not a byte log of the imu line; found {describe(data)}",
             file=file,
         )
     rows = buf[starts[:, None] + _OFFS]
@@ -95,6 +129,10 @@ def imu_log_chunks(data: bytes, *, file: str, shift_ns: int = 0) -> tuple[Serial
     t_us = rec["time_us"].astype(np.int64)
     if shift_ns:
         t_us = t_us + shift_ns // 1000
+        if t_us.max() > INT64_MAX_US:
+            raise ConfigError(
+                f"the IMU time shift of {shift_ns / 1e9:g} s moves frames past int64 nanoseconds", file=file
+            )
         keep = t_us >= 0
         rec["time_us"] = np.maximum(t_us, 0).astype(np.uint64)
         refresh_crc(rows)
@@ -150,7 +188,7 @@ class NmeaLog:
     epoch_of: np.ndarray
     tod_ns: np.ndarray
     dates: np.ndarray
-    info: dict[str, int]
+    info: dict[str, object]
 
     def epoch_utc_ns(self, epoch_utc_ns: int | None) -> np.ndarray:
         """(E,) UTC of each epoch, ns since 1970; ``epoch_utc_ns`` (UTC of bench time zero)
@@ -158,62 +196,71 @@ class NmeaLog:
 
         Raises ConfigError when the log has no date and ``epoch_utc_ns`` is None.
         """
-        tod, dates = self.tod_ns, self.dates
-        n = tod.size
-        day = np.zeros(n, np.int64)
-        known = np.flatnonzero(dates >= 0)
+        tod, dates = self.tod_ns.tolist(), self.dates.tolist()
+        n = len(tod)
+        day = [0] * n  # Python integers: midnights added never overflow
+        known = np.flatnonzero(self.dates >= 0)
         if known.size:
             a = int(known[0])
             day[a] = dates[a]
         else:
             if epoch_utc_ns is None:
+                bad = self.info.get("bad_kinds") or {}
                 raise ConfigError(
-                    "the NMEA log has no date (no ZDA, no RMC date) and the UTC of bench time zero is "
-                    "unknown: give the epoch (--epoch)",
+                    "the NMEA log has no date (no ZDA, no RMC date that decodes) and the UTC of bench time zero "
+                    "is unknown: give the epoch (--epoch)"
+                    + (f"; sentences that do not decode, by kind: {bad}" if bad else ""),
                     file=self.file,
                 )
             a = 0
-            first = epoch_utc_ns // DAY_NS * DAY_NS + int(tod[0])
+            first = epoch_utc_ns // DAY_NS * DAY_NS + tod[0]
             if first < epoch_utc_ns - DAY_NS // 2:
                 first += DAY_NS
             elif first > epoch_utc_ns + DAY_NS // 2:
                 first -= DAY_NS
-            day[0] = first - int(tod[0])
+            day[0] = first - tod[0]
         half = DAY_NS // 2
         for e in range(a + 1, n):
-            if dates[e] >= 0:
-                day[e] = dates[e]
-            else:
-                day[e] = day[e - 1] + (DAY_NS if tod[e] < tod[e - 1] - half else 0)
+            day[e] = dates[e] if dates[e] >= 0 else day[e - 1] + (DAY_NS if tod[e] < tod[e - 1] - half else 0)
         for e in range(a - 1, -1, -1):
             day[e] = day[e + 1] - (DAY_NS if tod[e] > tod[e + 1] + half else 0)
-        return day + tod
+        utc = [d + t for d, t in zip(day, tod, strict=True)]
+        bad = [i for i, u in enumerate(utc) if not -(2**63) <= u < 2**63]
+        if bad:
+            raise ConfigError(
+                f"NMEA epoch {bad[0]}: its UTC (date and midnights passed) does not fit int64 ns", file=self.file
+            )
+        return np.array(utc, np.int64)
 
     def batch(self, t_ns: np.ndarray) -> SerialBatch:
         """The chunks due at ``t_ns`` (N,) (made non-decreasing: the line keeps its byte order)."""
         return SerialBatch(np.maximum.accumulate(np.asarray(t_ns, np.int64)), self.offsets, self.buf)
 
 
-def _sentence_time(line: bytes) -> tuple[int | None, int | None, bool]:
-    """(time of day ns or None, UTC midnight ns of its date or None, good) of one sentence."""
+def _sentence_time(line: bytes) -> tuple[int | None, int | None, str | None]:
+    """(time of day ns or None, UTC midnight ns of its date or None, kind of its fault or
+    None) of one sentence; another sentence type than the ICD's is no fault, it has no time."""
     talker = line[1:3].decode("ascii", "replace")
     try:
         _, kind, fields = parse_sentence(line, talkers=(talker,))
     except CodecError as exc:
-        return None, None, exc.kind == "unknown_id"  # another sentence type: good, no time
+        return None, None, None if exc.kind == "unknown_id" else exc.kind
     if kind not in _TIMED:
-        return None, None, True
+        return None, None, None
     try:
         values = decode_fields(kind, fields)
-    except CodecError:
-        return None, None, True
+    except CodecError as exc:
+        return None, None, exc.kind
     date = values.get("date")
-    midnight = calendar.timegm((*date, 0, 0, 0)) * 1_000_000_000 if date else None
-    return values.get("tod_ns"), midnight, True
+    midnight = days_since_1970(date) * DAY_NS if date else None
+    return values.get("tod_ns"), midnight, None
 
 
 def read_nmea_log(data: bytes, *, file: str) -> NmeaLog:
-    """Cut an NMEA byte log into sentences and epochs (see the module docstring).
+    """Cut an NMEA byte log into sentences and epochs (see the module docstring). A
+    sentence that does not decode (checksum, format, a field out of range such as a ZDA
+    date that does not exist) is kept on the line, gives no time or date, and is counted
+    by kind in ``info["bad_kinds"]``.
 
     Raises
     ------
@@ -222,19 +269,26 @@ def read_nmea_log(data: bytes, *, file: str) -> NmeaLog:
     """
     if not data:
         raise ConfigError("the NMEA byte log is empty", file=file)
-    matches = list(_SENTENCE.finditer(data))
-    if not matches:
-        hint = " (its lines end in LF alone: the ICD's NMEA ends them in CR LF)" if b"\n" in data else ""
-        raise ConfigError(f"no NMEA sentence ('$' ... CR LF) in {len(data)} bytes{hint}", file=file)
-    n = len(matches)
+    events, _ = frame_events(data, final=True)
+    lines = [(a, b) for kind, a, b in events if kind == "line"]
+    if not lines:
+        found = describe(data)
+        hint = " (the ICD's NMEA ends its lines in CR LF)" if "LF alone" in found and b"$" in data else ""
+        raise ConfigError(
+            f"no NMEA sentence ('$' ... CR LF within 82 characters) in {len(data)} bytes; found {found}{hint}",
+            file=file,
+        )
+    n = len(lines)
     epoch_of = np.zeros(n, np.int64)
     tods: list[int] = []
     dates: list[int] = []
-    untimed = bad = 0
+    bad: Counter[str] = Counter()
+    untimed = 0
     cur = -1
-    for k, m in enumerate(matches):
-        tod, midnight, good = _sentence_time(m.group())
-        bad += not good
+    for k, (a, b) in enumerate(lines):
+        tod, midnight, fault = _sentence_time(data[a:b])
+        if fault is not None:
+            bad[fault] += 1
         if tod is None:
             untimed += 1
         elif cur < 0 or tod != tods[cur]:
@@ -246,10 +300,11 @@ def read_nmea_log(data: bytes, *, file: str) -> NmeaLog:
             dates[cur] = midnight
     if not tods:
         raise ConfigError(
-            f"none of the {n} NMEA sentences carries a time field (RMC, GGA, GST, ZDA with a good checksum)",
+            f"none of the {n} NMEA sentences carries a time field (RMC, GGA, GST, ZDA that decode)"
+            + (f"; bad sentences by kind: {dict(sorted(bad.items()))}" if bad else ""),
             file=file,
         )
-    ends = np.fromiter((m.end() for m in matches), np.int64, n)
+    ends = np.fromiter((b for _, b in lines), np.int64, n)
     date_arr = np.array(dates, np.int64)
     return NmeaLog(
         file=file,
@@ -261,9 +316,10 @@ def read_nmea_log(data: bytes, *, file: str) -> NmeaLog:
         info={
             "sentences": n,
             "untimed": untimed,
-            "bad": bad,
+            "bad": sum(bad.values()),
+            "bad_kinds": dict(sorted(bad.items())),
             "epochs": len(tods),
             "dated_epochs": int(np.count_nonzero(date_arr >= 0)),
-            "other_bytes": int(len(data) - sum(m.end() - m.start() for m in matches)),
+            "other_bytes": int(len(data) - sum(b - a for a, b in lines)),
         },
     )

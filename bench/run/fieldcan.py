@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.config.files import LOG_LIMIT, regular_file
 from bench.errors import ConfigError
 from bench.frames import CanBatch
 from bench.run.traffic import BENCH_TIME_ID
@@ -95,7 +96,7 @@ def place_can_log(
     """
     if can_ids not in ("icd", "all"):
         raise ConfigError(f"expected can_ids 'icd' or 'all', found {can_ids!r}", key="can_ids")
-    log = read_can_log_file(path)
+    log = read_can_log_file(regular_file(path, what="CAN log", limit=LOG_LIMIT))
     file = str(path)
     f = log.frames
     keep = np.ones(len(f), bool)

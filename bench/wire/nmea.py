@@ -19,9 +19,9 @@ Fields (``f`` decimals as written):
 * a fix of quality 0 (outage, "no fix") sends RMC status ``V``, mode ``N``, GGA quality 0
   and empty position, speed and sigma fields; ZDA still carries the receiver's time.
 
-Decoding: :func:`parse_sentence` checks framing and checksum of one sentence strictly
-(``CodecError`` kinds ``format``, ``checksum``, ``length``, ``unknown_id``) and
-:func:`decode_fields` turns the fields of a known sentence into numbers.
+Decoding, strict and total, is in :mod:`bench.wire.nmea_fields` (one sentence:
+:func:`~bench.wire.nmea_fields.parse_sentence`, :func:`~bench.wire.nmea_fields.decode_fields`)
+and :mod:`bench.wire.nmea_stream` (the byte stream).
 """
 
 from __future__ import annotations
@@ -42,8 +42,6 @@ __all__ = [
     "MAX_SENTENCE",
     "encode_epochs",
     "checksum",
-    "parse_sentence",
-    "decode_fields",
     "quality_mode",
 ]
 
@@ -201,125 +199,3 @@ def encode_epochs(fixes: np.ndarray, *, talker: str = "GB", at_ns=None, outage_s
     offsets = np.zeros(len(out) + 1, np.int64)
     np.cumsum([len(o) for o in out], out=offsets[1:])
     return SerialBatch(np.repeat(at_ns, 5), offsets, b"".join(out))
-
-
-def parse_sentence(line: bytes, *, talkers: tuple[str, ...] = TALKERS) -> tuple[str, str, list[str]]:
-    """(talker, type, fields) of one sentence, with or without its CR LF; strict.
-
-    CodecError kinds: ``length`` (over 82 characters), ``format`` (framing, characters,
-    talker), ``checksum`` (``*hh`` does not match), ``unknown_id`` (not one of
-    :data:`SENTENCES`).
-    """
-    if len(line) > MAX_SENTENCE:
-        raise CodecError("length", f"NMEA sentence of {len(line)} characters (at most {MAX_SENTENCE})")
-    text = line[:-2] if line.endswith(b"\r\n") else line
-    if not text.startswith(b"$"):
-        raise CodecError("format", f"NMEA sentence does not start with '$': {line[:20]!r}")
-    star = text.rfind(b"*")
-    if star < 0 or len(text) - star != 3:
-        raise CodecError("format", f"NMEA sentence without '*hh' checksum: {line[-12:]!r}")
-    body = text[1:star]
-    if any(c < 0x20 or c > 0x7E or c in b"$*!" for c in body):
-        raise CodecError("format", f"NMEA sentence holds a reserved or non-printable character: {line[:40]!r}")
-    try:
-        given = int(text[star + 1 :], 16)
-    except ValueError:
-        raise CodecError("format", f"NMEA checksum {text[star + 1 :]!r} is not hexadecimal") from None
-    want = checksum(body)
-    if given != want:
-        raise CodecError("checksum", f"NMEA checksum {given:02X} does not match {want:02X}")
-    parts = body.decode("ascii").split(",")
-    head = parts[0]
-    if len(head) != 5:
-        raise CodecError("format", f"NMEA address {head!r} is not a talker and a sentence type")
-    talker, kind = head[:2], head[2:]
-    if talker not in talkers:
-        raise CodecError("format", f"NMEA talker {talker!r} (expected {', '.join(talkers)})")
-    if kind not in SENTENCES:
-        raise CodecError("unknown_id", f"NMEA sentence type {kind!r} is not one of {', '.join(SENTENCES)}")
-    return talker, kind, parts[1:]
-
-
-_FIELD_COUNTS = {"RMC": 13, "GGA": 14, "GST": 8, "VTG": 9, "ZDA": 6}
-
-
-def _num(text: str, what: str) -> float:
-    if text == "":
-        return math.nan
-    try:
-        return float(text)
-    except ValueError:
-        raise CodecError("format", f"NMEA {what}: {text!r} is not a number") from None
-
-
-def _tod(text: str) -> int | None:
-    """Time of day ``hhmmss.ss`` -> ns since midnight (None if empty)."""
-    if text == "":
-        return None
-    if len(text) < 6 or not text[:6].isdigit():
-        raise CodecError("format", f"NMEA time {text!r} is not hhmmss.ss")
-    h, m, s = int(text[:2]), int(text[2:4]), _num(text[4:], "seconds")
-    if h > 23 or m > 59 or not 0 <= s < 61:
-        raise CodecError("format", f"NMEA time {text!r} out of range")
-    return (h * 3600 + m * 60) * 1_000_000_000 + round(s * 1e9)
-
-
-def _coord(value: str, hemi: str, width: int, pos: str, neg: str) -> float:
-    if value == "" and hemi == "":
-        return math.nan
-    if len(value) < width + 2 or value[width + 2 : width + 3] not in (".", "") or hemi not in (pos, neg):
-        raise CodecError("format", f"NMEA coordinate {value!r},{hemi!r}")
-    deg = _num(value[:width], "degrees") + _num(value[width:], "minutes") / 60.0
-    return math.radians(-deg if hemi == neg else deg)
-
-
-def decode_fields(kind: str, fields: list[str]) -> dict:
-    """The values of a sentence's fields (SI; NaN or None where the field is empty)."""
-    if len(fields) != _FIELD_COUNTS[kind]:
-        raise CodecError("format", f"NMEA {kind}: expected {_FIELD_COUNTS[kind]} fields, found {len(fields)}")
-    f = fields
-    if kind == "RMC":
-        date = None
-        if f[8]:
-            if len(f[8]) != 6 or not f[8].isdigit():
-                raise CodecError("format", f"NMEA RMC date {f[8]!r} is not ddmmyy")
-            date = (2000 + int(f[8][4:]), int(f[8][2:4]), int(f[8][:2]))
-        if f[1] not in ("A", "V"):
-            raise CodecError("format", f"NMEA RMC status {f[1]!r}")
-        return {
-            "tod_ns": _tod(f[0]),
-            "valid": f[1] == "A",
-            "lat": _coord(f[2], f[3], 2, "N", "S"),
-            "lon": _coord(f[4], f[5], 3, "E", "W"),
-            "sog": _num(f[6], "speed") * KNOT,
-            "cog": math.radians(_num(f[7], "course")),
-            "date": date,
-            "mode": f[11],
-            "nav_status": f[12],
-        }
-    if kind == "GGA":
-        if f[9] not in ("M", "") or f[11] not in ("M", ""):
-            raise CodecError("format", "NMEA GGA units are not metres")
-        quality = int(_num(f[5], "quality")) if f[5] else 0
-        return {
-            "tod_ns": _tod(f[0]),
-            "lat": _coord(f[1], f[2], 2, "N", "S"),
-            "lon": _coord(f[3], f[4], 3, "E", "W"),
-            "quality": quality,
-            "sats": int(_num(f[6], "satellites")) if f[6] else 0,
-            "hdop": _num(f[7], "HDOP"),
-            "h": _num(f[8], "altitude") + (_num(f[10], "geoid") if f[10] else 0.0),
-        }
-    if kind == "GST":
-        return {
-            "tod_ns": _tod(f[0]),
-            "sigma_lat": _num(f[5], "sigma lat"),
-            "sigma_lon": _num(f[6], "sigma lon"),
-            "sigma_alt": _num(f[7], "sigma alt"),
-        }
-    if kind == "VTG":
-        return {"cog": math.radians(_num(f[0], "course")), "sog": _num(f[4], "speed") * KNOT, "mode": f[8]}
-    # ZDA
-    if not (f[1].isdigit() and f[2].isdigit() and f[3].isdigit() and len(f[3]) == 4):
-        raise CodecError("format", f"NMEA ZDA date {f[1]!r}/{f[2]!r}/{f[3]!r}")
-    return {"tod_ns": _tod(f[0]), "date": (int(f[3]), int(f[2]), int(f[1]))}

@@ -46,7 +46,8 @@ class _CanReceiver:
         self.frames = 0
 
     def _groups(self, batch: CanBatch):
-        """(codec, good sub-batch, decoded values, sequence labels) of each known identifier."""
+        """(codec, good sub-batch, decoded values, sequence labels, their rows in ``batch``)
+        of each known identifier."""
         self.frames += len(batch)
         known = np.isin(batch.can_id, np.fromiter(self.codecs, np.uint32))
         for i in np.flatnonzero(~known).tolist():
@@ -64,12 +65,12 @@ class _CanReceiver:
                 self.tally.reject(f.t_ns, f"can:{c.name}", kind, f.data, f"{c.name}: bad {kind}")
             good = status == 0
             if not good.all():
-                sub = sub.take(good)
+                sub, sel = sub.take(good), sel[good]
                 values = {k: v[good] for k, v in values.items()}
             rows = sub.with_width(c.length).data[:, : c.length]
             labels, lost = self.sequences[frame_id].check(values[c.counter_name], rows)
             self._count_labels(c, sub, labels, lost)
-            yield c, sub, values, labels
+            yield c, sub, values, labels, sel
 
     def _count_labels(self, c: CanCodec, sub: CanBatch, labels: np.ndarray, lost: np.ndarray) -> None:
         for code in np.unique(labels[labels > 0]).tolist():
@@ -101,13 +102,16 @@ class NavReceiver(_CanReceiver):
     Counter anomalies (epoch or alive counter repeated or skipped) count as ``counter``
     (frames still handed on), exact duplicates as ``duplicate`` (dropped), epochs lost as
     ``lost``; a NAV_QUALITY whose epoch counter and time match no NAV_SOLUTION received
-    as ``pairing``. Any other identifier is ``unknown_id``.
+    as ``pairing`` (the solution must have arrived before its quality, among the last
+    1024 solutions). Any other identifier is ``unknown_id``.
     """
 
     def __init__(self, tally: Tally | None = None):
         super().__init__(DUT_OUTPUT_MESSAGES, tally)
         self._recent_t = np.zeros(0, np.int64)  # times of validity of the last NAV_SOLUTIONs
         self._recent_epoch = np.zeros(0, np.int64)
+        self._recent_seq = np.zeros(0, np.int64)  # their numbers in arrival order
+        self._n_solutions = 0
 
     def _label_kind(self, code: int) -> str:
         return "counter" if code in (SEQ_REPEAT, SEQ_SKIP) else SEQ_KINDS[code]
@@ -124,35 +128,51 @@ class NavReceiver(_CanReceiver):
     def feed(self, batch: CanBatch) -> NavOutput:
         """Decode one batch of received frames (arrival times in ``batch.t_ns``)."""
         out = NavOutput()
-        for c, sub, values, labels in self._groups(batch):
+        sol_rows = q_rows = np.zeros(0, np.int64)
+        for c, sub, values, labels, rows in self._groups(batch):
             keep = labels != SEQ_DUPLICATE
             values = {k: v[keep] for k, v in values.items()}
             rx = sub.t_ns[keep]
             if c.name == "NAV_SOLUTION":
-                out.solutions = self._records(NAV_SOLUTION_DTYPE, values, rx)
-                self._recent_t = np.concatenate([self._recent_t, values["t_ns"]])[-_RECENT:]
-                self._recent_epoch = np.concatenate([self._recent_epoch, values["epoch"]])[-_RECENT:]
+                out.solutions, sol_rows = self._records(NAV_SOLUTION_DTYPE, values, rx), rows[keep]
             elif c.name == "NAV_QUALITY":
-                out.qualities = self._records(NAV_QUALITY_DTYPE, values, rx)
+                out.qualities, q_rows = self._records(NAV_QUALITY_DTYPE, values, rx), rows[keep]
             else:
                 out.ready_ns, out.ready_rx_ns = values["time_ns"], rx
-        if out.qualities.size:  # each NAV_QUALITY belongs to a NAV_SOLUTION of the same time and epoch
-            paired = np.zeros(out.qualities.size, bool)
-            if self._recent_t.size:
-                order = np.argsort(self._recent_t, kind="stable")
-                times, epochs = self._recent_t[order], self._recent_epoch[order]
-                pos = np.minimum(np.searchsorted(times, out.qualities["t_ns"]), times.size - 1)
-                paired = (times[pos] == out.qualities["t_ns"]) & (epochs[pos] == out.qualities["epoch"])
-            for i in np.flatnonzero(~paired).tolist():
-                q = out.qualities[i]
-                self.tally.reject(
-                    int(q["rx_ns"]),
-                    "can:NAV_QUALITY",
-                    "pairing",
-                    b"",
-                    f"epoch {int(q['epoch'])} at {int(q['t_ns'])} ns matches no NAV_SOLUTION",
-                )
+        paired = self._pair(out.solutions, sol_rows, out.qualities, q_rows)
+        for i in np.flatnonzero(~paired).tolist():
+            q = out.qualities[i]
+            self.tally.reject(
+                int(q["rx_ns"]),
+                "can:NAV_QUALITY",
+                "pairing",
+                b"",
+                f"epoch {int(q['epoch'])} at {int(q['t_ns'])} ns matches no NAV_SOLUTION",
+            )
         return out
+
+    def _pair(self, sols: np.ndarray, sol_rows: np.ndarray, quals: np.ndarray, q_rows: np.ndarray) -> np.ndarray:
+        """(Q,) bool: each NAV_QUALITY has a NAV_SOLUTION of the same time and epoch among the
+        last ``_RECENT`` received before it (in arrival order, so batches cut anywhere agree)."""
+        base = self._n_solutions
+        t_all = np.concatenate([self._recent_t, sols["t_ns"]])
+        ep_all = np.concatenate([self._recent_epoch, sols["epoch"].astype(np.int64)])
+        seq_all = np.concatenate([self._recent_seq, base + np.arange(sols.size, dtype=np.int64)])
+        paired = np.zeros(quals.size, bool)
+        if quals.size and t_all.size:
+            keys = np.zeros(t_all.size + quals.size, [("t", "<i8"), ("e", "<i8")])
+            keys["t"] = np.concatenate([t_all, quals["t_ns"]])
+            keys["e"] = np.concatenate([ep_all, quals["epoch"].astype(np.int64)])
+            label = np.unique(keys, return_inverse=True)[1].reshape(-1).astype(np.int64)
+            ls, lq = label[: t_all.size], label[t_all.size :]
+            before = base + np.searchsorted(sol_rows, q_rows)  # solutions received before each quality
+            comp = np.sort((ls << 40) | seq_all)
+            j = np.searchsorted(comp, (lq << 40) | before) - 1
+            cand = comp[np.maximum(j, 0)]
+            paired = (j >= 0) & ((cand >> 40) == lq) & ((cand & ((1 << 40) - 1)) >= before - _RECENT)
+        self._n_solutions += sols.size
+        self._recent_t, self._recent_epoch, self._recent_seq = t_all[-_RECENT:], ep_all[-_RECENT:], seq_all[-_RECENT:]
+        return paired
 
 
 class BenchTrafficDecoder(_CanReceiver):
@@ -178,7 +198,7 @@ class BenchTrafficDecoder(_CanReceiver):
     def feed(self, batch: CanBatch) -> dict[str, dict[str, np.ndarray]]:
         """Decode one batch of received frames (arrival times in ``batch.t_ns``)."""
         out: dict[str, dict[str, np.ndarray]] = {}
-        for c, sub, values, labels in self._groups(batch):
+        for c, sub, values, labels, _rows in self._groups(batch):
             keep = labels != SEQ_DUPLICATE
             values = {k: v[keep] for k, v in values.items()}
             values["rx_ns"] = sub.t_ns[keep]

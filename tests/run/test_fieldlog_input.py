@@ -1,18 +1,24 @@
 """Field logs as input, without a source run: NMEA logs without dates or with talkers and
-sentences the ICD does not list (every byte is kept), and malformed logs of every kind,
-each refused with an error naming the file."""
+sentences the ICD does not list (every byte is kept), malformed logs of every kind and
+files that are no log of the option's kind (directories, devices, FIFOs, text, binary,
+another line's log), each refused with an error naming the file and what it holds, and
+bad sentences in a log counted and reported."""
 
 from __future__ import annotations
 
+import json
+import os
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from bench.cli.app import run as cli
 from bench.errors import ConfigError
+from bench.run import bytelogs
 from bench.run.bytelogs import DAY_NS, read_nmea_log
 from bench.run.logreplay import FieldLogs, LogReplay
-from bench.wire import nmea
+from bench.wire import imu, nmea
 
 
 # ---------------------------------------------------------------------------- NMEA logs
@@ -80,3 +86,109 @@ def test_malformed_logs_give_errors_naming_the_file(tmp_path, name, data, kind, 
     with pytest.raises(ConfigError, match=message) as err:
         LogReplay(FieldLogs(**{kind: path}), lockstep=True)
     assert str(path) in str(err.value)
+
+
+# ---------------------------------------------------------------------------- not what the option expects
+def _gga_zda(zda: str) -> bytes:
+    gga = "GBGGA,120000.00,3422.64806,N,10851.71886,E,1,12,0.9,380.000,M,0.0,M,,"
+    return _sentence(gga.encode()) + _sentence(zda.encode())
+
+
+def _files(tmp_path: Path) -> dict[str, Path]:
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    (tmp_path / "dir").mkdir()
+    fixes = np.zeros(2, nmea.GNSS_FIX_DTYPE)
+    fixes["utc_ns"], fixes["quality"] = 1_772_352_000_000_000_000 + np.arange(2) * 10**9, 1
+    t = np.array([5_000_000, 10_000_000])
+    frames = imu.encode_frames(t, np.zeros((2, 3)), np.zeros((2, 3)), 0x3F, 20.0, [0, 1])
+    return {
+        "dir": tmp_path / "dir",
+        "fifo": fifo,
+        "zero": Path("/dev/zero"),
+        "text": _write(tmp_path / "notes.txt", b"hello world\nthis is text\n"),
+        "binary": _write(tmp_path / "blob.bin", bytes(np.random.default_rng(2).integers(0, 256, 4000, np.uint8))),
+        "nmea": _write(tmp_path / "gnss.nmea", nmea.encode_epochs(fixes).tobytes()),
+        "imu": _write(tmp_path / "imu.bin", frames.tobytes()),
+        "mcap": _write(tmp_path / "run.mcap", b"\x89MCAP0\r\n" + bytes(200)),
+    }
+
+
+@pytest.mark.parametrize(
+    ("kind", "name", "found"),
+    [
+        ("imu", "dir", "is a directory"),
+        ("gnss", "dir", "is a directory"),
+        ("can", "dir", "is a directory"),
+        ("imu", "zero", "is a character device"),
+        ("gnss", "zero", "is a character device"),
+        ("can", "zero", "is a character device"),
+        ("gnss", "fifo", r"is a FIFO \(named pipe\)"),
+        ("imu", "fifo", r"is a FIFO \(named pipe\)"),
+        ("imu", "text", "found text whose lines end in LF alone, starting 'hello world'"),
+        ("imu", "nmea", r"found 10 NMEA sentences .*gnss line"),
+        ("gnss", "binary", r"found binary data \(\d+ of its first 4000 bytes not printable"),
+        ("gnss", "imu", r"found 2 ICD IMU frames .*imu line"),
+        ("gnss", "mcap", "found an MCAP recording"),
+        ("imu", "mcap", "found an MCAP recording"),
+    ],
+)
+def test_a_field_log_that_is_not_what_the_option_expects_is_refused_naming_what_it_is(tmp_path, kind, name, found):
+    path = _files(tmp_path)[name]
+    with pytest.raises(ConfigError, match=found) as err:
+        LogReplay(FieldLogs(**{kind: path}), lockstep=True)
+    assert str(path) in str(err.value)
+
+
+def test_the_command_refuses_them_with_exit_2_and_no_traceback(tmp_path, capsys):
+    files = _files(tmp_path)
+    for option, name in (("--imu-log", "zero"), ("--gnss-log", "fifo"), ("--gnss-log", "binary"), ("--can-log", "dir")):
+        argv = ["replay", option, str(files[name]), "--estimator", "dead_reckoning", "-q", "-o"]
+        argv.append(str(tmp_path / "o.mcap"))
+        assert cli(argv) == 2, (option, name)
+        err = capsys.readouterr().err
+        assert str(files[name]) in err and "Traceback" not in err
+    assert not (tmp_path / "o.mcap").exists()
+
+
+def test_a_log_bigger_than_the_limit_is_refused_before_it_is_read(tmp_path):
+    path = tmp_path / "big.nmea"
+    with path.open("wb") as fh:
+        fh.truncate(3 << 30)  # 3 GiB, sparse: nothing is written
+    for kind in ("gnss", "imu", "can"):
+        with pytest.raises(ConfigError, match=r"is 3 GiB, more than the 1 GiB limit") as err:
+            LogReplay(FieldLogs(**{kind: path}), lockstep=True)
+        assert str(path) in str(err.value)
+
+
+@pytest.mark.parametrize(
+    "zda",
+    [
+        "GBZDA,120000.00,01,13,2025,00,00",  # month 13: a traceback before
+        "GBZDA,120000.00,01,01,9999,00,00",  # beyond int64 ns: a traceback before
+        "GBZDA,120000.00,31,02,2025,00,00",  # 31 February: taken as 3 March before
+        "GBZDA,120000.00,01,06,2O25,00,00",  # not digits
+    ],
+)
+def test_a_bad_zda_in_a_field_log_is_counted_and_reported(tmp_path, zda, capsys):
+    path = _write(tmp_path / "bad.nmea", _gga_zda(zda))
+    log = read_nmea_log(path.read_bytes(), file=str(path))
+    assert log.info["bad"] == 1 and sum(log.info["bad_kinds"].values()) == 1 and log.info["dated_epochs"] == 0
+    with pytest.raises(ConfigError, match=r"no date .*do not decode, by kind: \{'(range|format)': 1\}"):
+        log.epoch_utc_ns(None)
+    # with the epoch given the log replays; the figures written into the recording say what was bad
+    rep = LogReplay(FieldLogs(gnss=path, epoch_ns=1_748_736_000_000_000_000), lockstep=True)
+    figures = json.loads(rep.metadata()["log_figures"])["gnss"]
+    assert figures["bad"] == 1 and figures["bad_kinds"] == log.info["bad_kinds"]
+    assert rep.duration_ns > 0
+    argv = ["replay", "--gnss-log", str(path), "--estimator", "dead_reckoning", "-q", "-o", str(tmp_path / "o.mcap")]
+    assert cli(argv) == 2
+    assert "do not decode" in capsys.readouterr().err
+
+
+def test_huge_imu_shifts_are_refused_not_overflowed(tmp_path):
+    data = _files(tmp_path)["imu"].read_bytes()
+    for shift in (10**22, -(10**22), (2**63 // 1000) * 1000):  # an OverflowError before
+        with pytest.raises(ConfigError, match="IMU time shift") as err:
+            bytelogs.imu_log_chunks(data, file="imu.bin", shift_ns=shift)
+        assert "imu.bin" in str(err.value)

@@ -1,6 +1,7 @@
 import numpy as np
+import pytest
 
-from bench.frames import SerialBatch
+from bench.frames import CanBatch, SerialBatch
 from bench.wire.imu import encode_batch
 from bench.wire.imu_stream import ImuStreamDecoder
 
@@ -29,3 +30,10 @@ def test_feed_batch_across_calls_and_with_garbage():
     assert len(first) == 10 and len(mid) == 0 and len(rest) == 10
     assert np.array_equal(np.concatenate([first["rx_ns"], rest["rx_ns"]]), t + 3)
     assert d.tally.as_dict().get("sync") == 1
+
+
+def test_batches_that_cannot_be_traffic_are_refused_when_built():
+    with pytest.raises(ValueError, match="must not decrease"):
+        SerialBatch([0, 1, 2], [0, 5, 3, 6], bytes(6))  # a chunk of -2 bytes
+    with pytest.raises(ValueError, match="at most 64 bytes"):
+        CanBatch([0], [0x120], np.zeros((1, 80), np.uint8), [80])

@@ -12,7 +12,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bench.errors import CodecError
-from bench.wire.nmea import GNSS_FIX_DTYPE, MAX_SENTENCE, SENTENCES, checksum, encode_epochs, parse_sentence
+from bench.wire.nmea import GNSS_FIX_DTYPE, MAX_SENTENCE, SENTENCES, checksum, encode_epochs
+from bench.wire.nmea_fields import parse_sentence
 from bench.wire.nmea_stream import NmeaStreamDecoder
 
 EPOCH_UTC = 1_748_736_000 * 10**9  # 2025-06-01T00:00:00Z
