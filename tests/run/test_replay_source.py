@@ -100,7 +100,10 @@ def test_accept_damaged_source_judges_it_and_says_so(run_rec, tmp_path, capsys):
     assert r.metadata()["run_start"]["accept_damaged_source"] == "true"
     assert r.read_columnar("/truth")["t_ns"][-1] <= 60.1e9  # it replays what the source holds, not the plan
     code, run = _score(out, tmp_path)
-    assert code == 0 and run["verdict"] == "PASS"
+    # judged, not ERROR: the dead reckoning is as good as before; the source's lost last
+    # stretch leaves the DUT without input, which the output-integrity defaults see
+    assert run["verdict"] != "ERROR" and code in (0, 1) and not run["bench_issues"]
+    assert run["criteria"]["c1"]["verdict"] == "PASS"
     assert run["notes"] and "accepted with --accept-damaged-source" in run["notes"][0]
     assert "was never finished" in run["notes"][0]
     # a replay of that replay inherits the problem: ERROR again unless accepted again
