@@ -59,7 +59,7 @@ class Harness:
         self.imu = open_serial_link(SerialConfig(port=imu_port, baudrate=460_800))
         self.gnss = open_serial_link(SerialConfig(port=gnss_port, baudrate=115_200))
         self.decoder = InputDecoder()
-        self.encoder = CanEncoder()
+        self.encoder = CanEncoder(wire_range=True)  # as a DUT puts it on the bus
         self._carry = CanBatch.empty()
         self._imu = np.zeros(0, IMU_SAMPLE_DTYPE)
         self._gnss = np.zeros(0, GNSS_FIX_DTYPE)

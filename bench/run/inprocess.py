@@ -36,7 +36,7 @@ class InProcessDut:
     def __init__(self, estimator: Estimator, epoch_utc_ns: int | None = None):
         self.estimator = estimator
         self.decoder = InputDecoder(epoch_utc_ns)
-        self.encoder = CanEncoder()
+        self.encoder = CanEncoder(wire_range=True)  # as a DUT puts it on the bus
         self.epochs = 0
         #: The frames of the steps before the estimator failed in :meth:`exchange` (the
         #: engine records them before it ends the run).
@@ -82,16 +82,49 @@ class InProcessDut:
         parts = []
         try:
             if sols is not None:
-                self.epochs += len(sols)
                 parts.append(self.encoder.encode_records("NAV_SOLUTION", sols))
             if quals is not None:
                 parts.append(self.encoder.encode_records("NAV_QUALITY", quals))
-        except CodecError as exc:  # the estimator produced values the ICD cannot carry
+        except CodecError as exc:  # values no NAV frame can carry (NaN, too large): the DUT failed
+            self.partial = self._before_failure(sols, quals)
             raise DutError(f"the estimator {self.estimator.name!r} output does not fit NAV frames: {exc}") from exc
+        if sols is not None:
+            self.epochs += len(sols)
         if not parts:
             return CanBatch.empty(64)
         batch = CanBatch.concat(parts)
         return batch.take(np.argsort(batch.t_ns, kind="stable"))
+
+    def _before_failure(self, sols: np.ndarray | None, quals: np.ndarray | None) -> CanBatch | None:
+        """The frames of the epochs before the first one that cannot be encoded (they
+        were delivered; the recording keeps them)."""
+        cut = None
+        for name, recs in (("NAV_SOLUTION", sols), ("NAV_QUALITY", quals)):
+            if recs is None:
+                continue
+            k = self._encodable_prefix(name, recs)
+            if k < len(recs):
+                t = int(recs["t_ns"][k])
+                cut = t if cut is None else min(cut, t)
+        if cut is None:
+            return None
+        keep = [r[r["t_ns"] < cut] if r is not None else None for r in (sols, quals)]
+        try:
+            return self._frames(*(r if r is not None and len(r) else None for r in keep))
+        except DutError:
+            return None
+
+    def _encodable_prefix(self, name: str, recs: np.ndarray) -> int:
+        """The largest k with ``recs[:k]`` encodable (bisection: a few encodes)."""
+        lo, hi = 0, len(recs)
+        while lo < hi:
+            mid = (lo + hi + 1) // 2
+            try:
+                self.encoder.encode_records(name, recs[:mid])
+                lo = mid
+            except CodecError:
+                hi = mid - 1
+        return lo
 
     def close(self) -> None:
         """End of the run."""

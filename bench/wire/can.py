@@ -68,6 +68,8 @@ class CanCodec:
         self.quantities = QUANTITIES[message.name]
         self._sig = {s.name: s for s in message.signals}
         self._bounds = {s.name: _raw_bounds(s) for s in message.signals}
+        #: what the wire's integer fields can carry, whatever the DBC's physical range
+        self._field_bounds = {s.name: (s.field.raw_min, s.field.raw_max) for s in message.signals}
         carried = {n for q in self.quantities for n in q.signals}
         extra = [s.name for s in message.signals if s.name not in carried and s.name not in _CRC_SIGNALS]
         if extra:
@@ -154,7 +156,7 @@ class CanCodec:
         return data
 
     # ---------------------------------------------------------------- SI level
-    def _to_raw(self, q: Quantity, value) -> dict[str, np.ndarray]:
+    def _to_raw(self, q: Quantity, value, wire_range: bool = False) -> dict[str, np.ndarray]:
         sigs = [self._sig[s] for s in q.signals]
         v = np.asarray(value)
         if q.kind in ("time_us", "time_ms"):
@@ -195,7 +197,7 @@ class CanCodec:
                     raw = np.mod(raw, round(360.0 / s.scale))
                 raws[s.name] = raw
         for name, raw in raws.items():
-            lo, hi = self._bounds[name]
+            lo, hi = (self._field_bounds if wire_range else self._bounds)[name]
             raw = np.asarray(raw)
             if raw.size and (raw.min() < lo or raw.max() > hi):
                 s = self._sig[name]
@@ -224,8 +226,13 @@ class CanCodec:
         cols = [(raw[s.name].astype(np.float64) * s.scale + s.offset) * _UNIT_TO_SI.get(s.unit, 1.0) for s in sigs]
         return np.stack(cols, axis=-1) if len(cols) > 1 else cols[0]
 
-    def encode(self, at_ns, values: Mapping[str, object]) -> CanBatch:
-        """Frames due at ``at_ns`` (N,) int64 from SI ``values`` (each (N,) or scalar, 3-vectors (N, 3))."""
+    def encode(self, at_ns, values: Mapping[str, object], *, wire_range: bool = False) -> CanBatch:
+        """Frames due at ``at_ns`` (N,) int64 from SI ``values`` (each (N,) or scalar, 3-vectors (N, 3)).
+
+        Values outside the DBC's physical range raise ``CodecError("range")``; with
+        ``wire_range`` only values the payload's integer fields cannot carry do (NaN, too
+        large): an estimator's output is put on the bus as a DUT would send it, and the
+        bench's strict decoder then rejects it as a bad frame, as from any DUT."""
         at_ns = np.atleast_1d(np.asarray(at_ns, np.int64))
         n = at_ns.shape[0]
         missing = [q.name for q in self.quantities if q.name not in values]
@@ -243,7 +250,7 @@ class CanCodec:
             shape = (n, len(q.signals)) if (q.kind == "float" and len(q.signals) > 1) else (n,)
             if value.shape != shape and value.shape != shape[1:]:  # arrays per frame, or one value for all
                 raise CodecError("length", f"{self.name}.{q.name}: expected shape {shape}, found {value.shape}")
-            raw.update(self._to_raw(q, value))
+            raw.update(self._to_raw(q, value, wire_range))
         data = np.zeros((n, self.length), np.uint8)
         pack(self._data_fields, raw, data)
         self._put_crc(data)
@@ -349,8 +356,11 @@ class CanEncoder:
     is given. Epoch counters (NAV frames) are data of the epoch and always given.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, *, wire_range: bool = False) -> None:
         self.counters: dict[str, CounterSequence] = {}
+        #: encode what the payload can carry, not only the DBC's physical range
+        #: (:meth:`CanCodec.encode`): the DUT side's encoder
+        self.wire_range = wire_range
 
     def encode(self, name: str, at_ns, **values) -> CanBatch:
         """Frames of message ``name`` due at ``at_ns`` (N,) from SI ``values``."""
@@ -358,7 +368,7 @@ class CanEncoder:
         n = np.atleast_1d(np.asarray(at_ns)).shape[0]
         if c.counter_name == "alive" and "alive" not in values:
             values["alive"] = self.counters.setdefault(name, CounterSequence(c.counter_modulus)).take(n)
-        return c.encode(at_ns, values)
+        return c.encode(at_ns, values, wire_range=self.wire_range)
 
     def encode_records(self, name: str, records: np.ndarray, at_ns=None) -> CanBatch:
         """Frames from records whose fields are named like the message's quantities

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from bench.acceptance.case import load_case
@@ -36,6 +37,10 @@ class Degrading(DeadReckoning):
             q["epoch"][q["t_ns"] >= FROM_NS] = 7
         elif self.corrupt == "height":
             sol["h"][late] = 1e6  # fits the wire's field, not the Earth
+        elif self.corrupt == "latitude":
+            sol["lat"][late] = np.radians(95.0)  # the int32 field carries it; the ICD's range does not
+        elif self.corrupt == "nan":
+            sol["lat"][late] = np.nan  # no NAV frame can carry it
         elif self.corrupt == "time_frozen":
             sol["t_ns"][late] = FROM_NS
             q["t_ns"][q["t_ns"] >= FROM_NS] = FROM_NS
@@ -83,6 +88,7 @@ at_most = "100 m"
         ("none", None),
         ("counter_stuck", "INTEGRITY-counter"),
         ("height", "INTEGRITY-range"),
+        ("latitude", "INTEGRITY-bad-frames"),
         ("time_frozen", "INTEGRITY-repeated"),
     ],
 )
@@ -97,4 +103,24 @@ def test_a_real_dut_whose_output_goes_bad_fails_on_the_named_check(tmp_path: Pat
         return
     assert named in failed and result.verdict is Verdict.FAIL, verdicts
     details = result.runs[0].values[named].details
+    if named == "INTEGRITY-bad-frames":  # rejected by the bench's decoder, as from any DUT
+        # 6 s to 10 s at 100 Hz, and their NAV_QUALITY frames left without a solution
+        assert details["by_kind"] == {"range": 401, "pairing": 401}, details
+        return
     assert details.get("first_at_s", details.get("first_t_s")) == pytest.approx(6.0, abs=0.011)
+
+
+def test_an_in_process_dut_whose_output_no_frame_can_carry_keeps_what_it_delivered(tmp_path: Path):
+    """NaN in an estimator's output: the run ends dut_error (the DUT failed to put its
+    epochs on the bus), and the 6 s it delivered before are in the recording."""
+    from bench.record.mcap_io import RecordingReader
+
+    (tmp_path / "drive.toml").write_text(DRIVE)
+    (tmp_path / "case.toml").write_text(CASE.format(corrupt="nan"))
+    result = run_case(load_case(tmp_path / "case.toml"), SuiteOptions(tmp_path / "out"))
+    assert result.verdict is Verdict.ERROR
+    rec = RecordingReader(result.runs[0].recording)
+    assert rec.metadata()["run_end"]["status"] == "dut_error"
+    assert "does not fit NAV frames" in rec.metadata()["run_end"]["reason"]
+    nav = rec.read_columnar("/dut/nav_solution")
+    assert len(nav) and nav["t_ns"].max() == FROM_NS - 10_000_000  # every epoch before the first NaN
