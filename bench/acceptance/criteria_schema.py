@@ -183,6 +183,12 @@ def _criterion(
     given = [c for c in COMPARATORS if t.has(c)]
     for c in COMPARATORS:
         t.raw(c)
+    if not given:  # a misspelt comparator is named, not reported as a missing limit
+        for k in t.data:
+            near = difflib.get_close_matches(str(k), COMPARATORS, n=1, cutoff=0.6)
+            if near and k not in COMPARATORS:
+                raise t.error(str(k), f"unknown key {k!r}; did you mean {near[0]!r}? (a criterion takes exactly "
+                              f"one of {', '.join(COMPARATORS)})")
     if len(given) != 1:
         found = ", ".join(given) or "none"
         raise t.error(
