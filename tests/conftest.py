@@ -21,3 +21,15 @@ def s000_trajectory():
     from bench.scenario.loader import load_scenario
 
     return load_scenario("S000").trajectory()
+
+
+@pytest.fixture(scope="module")
+def ns():
+    """A network namespace with multicast on its loopback (for udp_multicast between processes)."""
+    from tests.transport import netns
+
+    reason = netns.unavailable()
+    if reason:
+        pytest.skip(f"udp_multicast between processes needs a network namespace: {reason}")
+    with netns.multicast_netns() as name:
+        yield name

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.transport import netns
+from tests.record.damage import chunk_flipped, footer_damaged, killed
 
 HERE = Path(__file__).parent
 BENCH = [sys.executable, "-c", "import sys; from bench.cli import main; sys.exit(main())"]
@@ -247,33 +247,11 @@ def test_output_bad_in_the_last_40_percent_fails_on_the_named_integrity_criterio
 
 
 # ----------------------------------------------------------------------- recordings
-def _killed(src: Path, dst: Path) -> Path:
-    data = src.read_bytes()
-    dst.write_bytes(data[: len(data) * 2 // 3])  # what SIGKILL two thirds into the run leaves
-    return dst
-
-
-def _footer_damaged(src: Path, dst: Path) -> Path:
-    data = bytearray(src.read_bytes())
-    data[-37:-29] = b"\0" * 8
-    dst.write_bytes(bytes(data))
-    return dst
-
-
-def _flipped(src: Path, dst: Path) -> Path:
-    data = bytearray(src.read_bytes())
-    mid = len(data) // 2
-    for k in range(mid, mid + 64):
-        data[k] ^= 0xFF
-    dst.write_bytes(bytes(data))
-    return dst
-
-
-@pytest.mark.parametrize("damage", [_killed, _footer_damaged, _flipped], ids=["killed", "footer", "flipped"])
+@pytest.mark.parametrize("damage", [killed, footer_damaged, chunk_flipped], ids=["killed", "footer", "flipped"])
 def test_a_damaged_or_unfinished_recording_is_read_past_the_damage_and_never_judged(recording, tmp_path, damage):
     src = damage(recording, tmp_path / "src.mcap")
     info = bench("info", str(src), cwd=tmp_path, expect=0)  # a reading tool: what it can read, and the damage
-    assert ("unfinished" in info.out) if damage is _killed else ("DAMAGED" in info.out)
+    assert ("unfinished" in info.out) if damage is killed else ("DAMAGED" in info.out)
     assert "/truth" in info.out  # the rest is shown
     score = bench("score", str(src), "--json", str(tmp_path / "s.json"), cwd=tmp_path, expect=3)
     assert json.loads((tmp_path / "s.json").read_text())["cases"][0]["verdict"] == "ERROR", score.text
@@ -460,15 +438,6 @@ def test_a_sha256sums_beside_a_tampered_fmu_is_not_trusted_and_its_code_not_load
 
 
 # --------------------------------------------------------- external DUTs (a namespace)
-@pytest.fixture(scope="module")
-def ns():
-    reason = netns.unavailable()
-    if reason:
-        pytest.skip(f"udp_multicast between processes needs a network namespace: {reason}")
-    with netns.multicast_netns() as name:
-        yield name
-
-
 TALKER = HERE / "run" / "duts" / "talker.py"
 
 

@@ -13,7 +13,9 @@ import pytest
 
 from bench.cli import main
 from bench.record.mcap_io import RecordingReader
-from bench.record.scan import scan
+from tests.record.damage import chunk_flipped as _chunk_flipped
+from tests.record.damage import footer_damaged as _footer_damaged
+from tests.record.damage import killed as _killed
 
 CASE = Path(__file__).parent / "data" / "short_dr.toml"
 
@@ -23,31 +25,6 @@ def run_rec(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("src")
     assert main(["run", str(CASE), "-o", str(out), "-q", "--no-plots"]) == 0
     return out / "recordings" / "SHORT-DR" / "SHORT-DR-s3.mcap"
-
-
-def _killed(src: Path, dst: Path) -> Path:
-    data = src.read_bytes()
-    dst.write_bytes(data[: len(data) * 2 // 3])  # what SIGKILL two thirds into the run leaves
-    return dst
-
-
-def _footer_damaged(src: Path, dst: Path) -> Path:
-    data = bytearray(src.read_bytes())
-    data[-37:-29] = b"\0" * 8
-    dst.write_bytes(bytes(data))
-    return dst
-
-
-def _chunk_flipped(src: Path, dst: Path) -> Path:
-    shutil.copy(src, dst)
-    idx = scan(dst)
-    c = idx.chunks[len(idx.chunks) // 2]
-    idx.close()
-    data = bytearray(dst.read_bytes())
-    for k in range(c.offset + c.length // 2, c.offset + c.length // 2 + 64):
-        data[k] ^= 0xFF
-    dst.write_bytes(bytes(data))
-    return dst
 
 
 def _replay(src: Path, out: Path, *extra: str) -> int:

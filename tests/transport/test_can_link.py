@@ -106,15 +106,6 @@ def test_socketcan_vcan_round_trip():
     _same(got, frames, times=False)
 
 
-@pytest.fixture(scope="module")
-def ns():
-    reason = netns.unavailable()
-    if reason:
-        pytest.skip(f"udp_multicast needs a network namespace with multicast on loopback: {reason}")
-    with netns.multicast_netns() as name:
-        yield name
-
-
 def _udp(ns_name: str, port: int, **kw) -> UdpMulticastCanLink:
     cfg = CanConfig(interface="udp_multicast", channel="239.74.163.2", options={"port": port}, **kw)
     return netns.call_in(ns_name, lambda: open_can_link(cfg))
