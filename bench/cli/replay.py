@@ -71,17 +71,15 @@ def _dut_config(path: str | None) -> dict:
     import json
     import tomllib
 
+    from bench.config.files import read_text
     from bench.errors import ConfigError
 
     if path is None:
         return {}
-    p = Path(path)
-    if not p.is_file():
-        raise ConfigError("no such file" if not p.exists() else "is not a regular file", file=path, key="--dut-config")
+    text = read_text(path, what="DUT configuration file")  # a regular file of bounded size, or ConfigError
     try:
-        text = p.read_text(encoding="utf-8")
         doc = json.loads(text) if path.endswith(".json") else tomllib.loads(text)
-    except (OSError, UnicodeDecodeError, ValueError) as exc:  # tomllib's and json's errors are ValueErrors
+    except ValueError as exc:  # tomllib's and json's errors are ValueErrors
         raise ConfigError(f"expected a {'JSON' if path.endswith('.json') else 'TOML'} table: {exc}", file=path,
                           key="--dut-config") from None
     if not isinstance(doc, dict):

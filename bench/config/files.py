@@ -60,13 +60,20 @@ def _what(mode: int) -> str | None:
     return None if stat.S_ISREG(mode) else "not a regular file"
 
 
+def _a(what: str) -> str:
+    """``what`` with its article: ``a TOML file``, ``an IMU log``, ``an image``."""
+    first = what.split()[0] if what.split() else what
+    vowel = what[:1] in "aeiouAEIOU" or (first.isupper() and what[:1] in "AEFHILMNORSX")
+    return f"{'an' if vowel else 'a'} {what}"
+
+
 def _refuse_stat(st: os.stat_result, file: str, limit: int, what: str) -> None:
     kind = _what(st.st_mode)
     if kind is not None:
-        raise ConfigError(f"is {kind}, not a {what}", file=file)
+        raise ConfigError(f"is {kind}, not {_a(what)}", file=file)
     if st.st_size > limit:
         raise ConfigError(
-            f"is {file_size_text(st.st_size)}, more than the {file_size_text(limit)} limit of a {what}", file=file
+            f"is {file_size_text(st.st_size)}, more than the {file_size_text(limit)} limit of {_a(what)}", file=file
         )
 
 
@@ -114,7 +121,7 @@ def read_bytes(path: str | Path, *, what: str = "file", limit: int = LOG_LIMIT) 
             chunks.append(chunk)
             total += len(chunk)
             if total > limit:
-                raise ConfigError(f"grew past the {file_size_text(limit)} limit of a {what} while read", file=file)
+                raise ConfigError(f"grew past the {file_size_text(limit)} limit of {_a(what)} while read", file=file)
     except OSError as exc:
         raise _os_error(exc, file, what) from None
     finally:

@@ -84,7 +84,7 @@ def _fifo(tmp_path):
 
 
 BAD = {
-    "directory": (_dir, "is a directory, not an IMU log"),
+    "directory": (_dir, "is a directory, not an IMU log (a PSINS .imu text log or an MCAP recording)"),
     "empty": (_file("e.imu", b""), "empty file"),
     "binary": (_file("b.imu", bytes(range(256)) * 4), "binary data (starts 00 01 02 03"),
     "other text": (_file("t.imu", "hello world\n"),
@@ -93,7 +93,7 @@ BAD = {
     "toml": (_file("c.imu", '[case]\nname = "x"\n[dut]\nkind = "a"\n[x]\ny = 1\n'),
              "parameter lines 2 and 3 are not the PSINS layout"),
     "fake mcap": (_file("x.mcap", "not really"), "named .mcap but does not start with the MCAP magic"),
-    "fifo": (_fifo, "is a FIFO, not a regular file"),
+    "fifo": (_fifo, "is a FIFO (named pipe), not an IMU log"),
     "bad header": (_file("h.imu", PSINS_HEAD.format(ms=-10) + "1 2 3 4 5 6\n" * 200),
                    "expected the sampling interval (line 2, field 5) within (0, 1000] ms, found -10"),
     "too short": (_file("s.imu", PSINS_HEAD.format(ms=10) + "1 2 3 4 5 6\n" * 20),

@@ -11,12 +11,12 @@ refusal is a :class:`~bench.errors.ConfigError` naming the file and what was in 
 from __future__ import annotations
 
 import math
-import stat
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from bench.config.files import read_bytes, regular_file
 from bench.errors import ConfigError
 
 __all__ = ["ImuLog", "MCAP_MAGIC", "MAX_TEXT_BYTES", "MIN_SAMPLES", "sniff", "read_psins_imu", "check_log",
@@ -25,6 +25,7 @@ __all__ = ["ImuLog", "MCAP_MAGIC", "MAX_TEXT_BYTES", "MIN_SAMPLES", "sniff", "re
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 #: A PSINS text log larger than this is refused (30 min at 100 Hz is 2.7 MB).
 MAX_TEXT_BYTES = 512 * 1024 * 1024
+_WHAT = "IMU log (a PSINS .imu text log or an MCAP recording)"
 #: Fewer samples than this give no Allan deviation worth printing.
 MIN_SAMPLES = 100
 
@@ -56,20 +57,9 @@ def sniff(path: str | Path) -> str:
     """``"mcap"`` or ``"text"`` for a file worth parsing; :class:`ConfigError` naming
     what was found for anything else (missing, directory, device, FIFO, empty, binary,
     too large)."""
-    path = Path(path)
-    try:
-        st = path.stat()
-    except FileNotFoundError:
-        raise ConfigError("file not found", file=str(path)) from None
-    except OSError as exc:
-        raise ConfigError(f"cannot read: {exc.strerror}", file=str(path)) from None
-    if stat.S_ISDIR(st.st_mode):
-        raise ConfigError("is a directory, not an IMU log (a PSINS .imu text log or an MCAP recording)",
-                          file=str(path))
-    if not stat.S_ISREG(st.st_mode):
-        kind = "a FIFO" if stat.S_ISFIFO(st.st_mode) else "a device or socket"
-        raise ConfigError(f"is {kind}, not a regular file; expected an IMU log", file=str(path))
-    if st.st_size == 0:
+    path = regular_file(path, what=_WHAT, limit=MAX_TEXT_BYTES)  # no directory, device, FIFO or huge file
+    size = path.stat().st_size
+    if size == 0:
         raise ConfigError("empty file; expected an IMU log (PSINS .imu text or an MCAP recording)", file=str(path))
     try:
         with path.open("rb") as fh:
@@ -86,9 +76,6 @@ def sniff(path: str | Path) -> str:
         if exc.start < len(head) - 4:  # not just a character cut at the end of the block
             raise ConfigError(f"{_describe_bytes(head)}, not a PSINS text log or an MCAP recording",
                               file=str(path)) from None
-    if st.st_size > MAX_TEXT_BYTES:
-        raise ConfigError(f"text file of {st.st_size} bytes; a PSINS log larger than {MAX_TEXT_BYTES} bytes is "
-                          "refused", file=str(path))
     return "text"
 
 
@@ -105,11 +92,9 @@ def read_psins_imu(path: str | Path) -> ImuLog:
     path = Path(path)
     file = str(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_bytes(path, what=_WHAT, limit=MAX_TEXT_BYTES).decode("utf-8")
     except UnicodeDecodeError:
         raise ConfigError("not UTF-8 text; expected a PSINS .imu text log", file=file) from None
-    except OSError as exc:
-        raise ConfigError(f"cannot read: {exc.strerror}", file=file) from None
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("%")]
     if len(lines) < 4:
         raise ConfigError(
