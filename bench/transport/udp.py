@@ -153,6 +153,8 @@ class _MulticastSocket:
         self.sock = sock
         self.port = int(sock.getsockname()[1])
         self._dest = (group, self.port)
+        self._poll = select.poll()  # not select(): any descriptor number
+        self._poll.register(sock, select.POLLIN)
 
     def send(self, data: bytes, timeout: float | None) -> None:
         if timeout is None:
@@ -161,12 +163,14 @@ class _MulticastSocket:
         try:
             self.sock.sendto(data, socket.MSG_DONTWAIT, self._dest)
         except BlockingIOError:
-            if not select.select([], [self.sock], [], timeout)[1]:
+            out = select.poll()
+            out.register(self.sock, select.POLLOUT)
+            if not out.poll(timeout * 1e3):
                 raise can.CanTimeoutError(f"the socket took no datagram within {timeout:g} s") from None
             self.sock.sendto(data, socket.MSG_DONTWAIT, self._dest)
 
     def recv(self, timeout: float | None) -> bytes | None:
-        if timeout != 0.0 and not select.select([self.sock], [], [], timeout)[0]:
+        if timeout != 0.0 and not self._poll.poll(None if timeout is None else timeout * 1e3):
             return None
         try:
             return self.sock.recv(_MAX_DATAGRAM, socket.MSG_DONTWAIT)
