@@ -137,7 +137,7 @@ def test_port_zero_takes_a_free_port_a_python_can_dut_can_join(ns):
 
 
 def test_an_interface_address_that_is_not_here_names_the_fix(ns):
-    with pytest.raises(LinkError, match="on the interface 192.0.2.1: .*ip link set lo multicast on"):
+    with pytest.raises(LinkError, match=r"on the interface 192\.0\.2\.1: .*ip link set lo multicast on"):
         _link(ns, 43504, interface_address="192.0.2.1")
 
 
