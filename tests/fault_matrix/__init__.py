@@ -1,0 +1,1 @@
+"""The fault matrix of issue 10: hostile inputs given to the ``bench`` command."""
