@@ -8,14 +8,14 @@ import json
 import os
 import subprocess
 import sys
-import textwrap
 import uuid
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
 
-from tests.fault_matrix.matrix import HERE, MARK, SHORT, _marked, bench, case, readable
+from tests.fault_matrix.matrix import MARK, _marked, bench, case, readable
+from tests.run.robust_util import TALKER, dut_command, external_case
 
 # ------------------------------------------------------------- crashes and exit codes
 CRASHING = """
@@ -128,49 +128,9 @@ def test_a_sha256sums_beside_a_tampered_fmu_is_not_trusted_and_its_code_not_load
 
 
 # --------------------------------------------------------- external DUTs (a namespace)
-TALKER = HERE / "run" / "duts" / "talker.py"
-
-
 def _external_case(tmp_path: Path, port: int, config: str) -> Path:
-    command = (f"{sys.executable} {TALKER} --estimator talker --can-interface {{can_interface}} "
-               "--can-channel {can_channel} --imu {imu_port} --gnss {gnss_port} "
-               "--config {config}")
-    path = tmp_path / "external.toml"
-    path.write_text(textwrap.dedent(f"""
-        [case]
-        id = "EXT"
-        title = "an external DUT"
-        requirements = ["R"]
-
-        [scenario]
-        script = "{SHORT}"
-
-        [sensors]
-        imu = {{ grade = "navigation", rate = "200 Hz" }}
-
-        [dut]
-        kind = "external"
-        command = "{command}"
-        config = {config}
-        startup_timeout = "60 s"
-        shutdown_timeout = "60 s"
-
-        [dut.links]
-        can = {{ interface = "udp_multicast", channel = "239.74.166.{port % 250}" }}
-
-        [clock]
-        mode = "lockstep"
-        timeout = "60 s"
-
-        [run]
-        seeds = [1]
-
-        [[criterion]]
-        requirement = "R"
-        metric = "accuracy.horizontal.max"
-        at_most = "5 m"
-        """))
-    return path
+    return external_case(tmp_path / "external.toml", case_id="EXT", command=dut_command(None, None, TALKER),
+                         config=config, channel=f"239.74.166.{port % 250}")
 
 
 def test_hostile_dut_text_is_made_harmless_everywhere_it_is_shown(ns, tmp_path):

@@ -11,16 +11,59 @@ from bench.record.mcap_io import RecordingReader
 
 HERE = Path(__file__).parent
 MISBEHAVE = HERE / "duts" / "misbehave.py"
+TALKER = HERE / "duts" / "talker.py"
 SHORT = HERE.parent / "data" / "short_drive.toml"
 TABLES = {"imu": {"grade": "navigation", "rate": "200 Hz"}, "doppler": {"model": "seed000"}}
 
 
-def dut_command(ns: str | None, port: int | None) -> str:
-    """The misbehaving DUT's command line (ICD placeholders; in network namespace ``ns``)."""
+def dut_command(ns: str | None, port: int | None, script: Path = MISBEHAVE) -> str:
+    """A test DUT's command line (the misbehaving DUT by default; ICD placeholders; in
+    network namespace ``ns``)."""
     prefix = f"ip netns exec {ns} " if ns else ""
     port_arg = f"--can-port {port} " if port else ""
-    return (f"{prefix}{sys.executable} {MISBEHAVE} --estimator misbehave --can-interface {{can_interface}} "
+    return (f"{prefix}{sys.executable} {script} --estimator {script.stem} --can-interface {{can_interface}} "
             f"--can-channel {{can_channel}} {port_arg}--imu {{imu_port}} --gnss {{gnss_port}} --config {{config}}")
+
+
+def external_case(path: Path, *, case_id: str, command: str, config: str, channel: str, run: str = "") -> Path:
+    """Write a test case at ``path`` running ``command`` (an external DUT, inline TOML
+    ``config``) over udp_multicast group ``channel`` in lockstep on the short drive, with
+    60 s hang guards (not speed bounds) and one horizontal-accuracy criterion."""
+    path.write_text(f"""
+[case]
+id = "{case_id}"
+title = "an external test DUT"
+requirements = ["R"]
+
+[scenario]
+script = "{SHORT}"
+
+[sensors]
+imu = {{ grade = "navigation", rate = "200 Hz" }}
+
+[dut]
+kind = "external"
+command = "{command}"
+config = {config}
+startup_timeout = "60 s"  # hang guards, not speed bounds
+shutdown_timeout = "60 s"
+
+[dut.links]
+can = {{ interface = "udp_multicast", channel = "{channel}" }}
+
+[clock]
+mode = "lockstep"
+timeout = "60 s"
+
+[run]
+seeds = [1]
+{run}
+[[criterion]]
+requirement = "R"
+metric = "accuracy.horizontal.max"
+at_most = "5 m"
+""")
+    return path
 
 
 def proc_state(pid: int) -> str | None:

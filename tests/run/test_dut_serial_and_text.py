@@ -29,18 +29,14 @@ from bench.run.engine import run
 from bench.run.spec import ClockSpec, DutSpec, LinkSpec, RunSpec
 from bench.scenario.loader import load_scenario
 from tests.run.duts.talker import HOSTILE, pattern
-from tests.run.robust_util import SHORT, TABLES, group_members, log_texts
+from tests.run.robust_util import SHORT, TABLES, TALKER, dut_command, external_case, group_members, log_texts
 from tests.transport import netns
 
-TALKER = Path(__file__).parent / "duts" / "talker.py"
 RAW_CONTROL = re.compile("[\x00-\x08\x0b-\x1f\x7f-\x9f\u202a-\u202e]")  # newline and tab are the output's own
 
 
 def _command(ns: str | None, port: int | None) -> str:
-    prefix = f"ip netns exec {ns} " if ns else ""
-    port_arg = f"--can-port {port} " if port else ""
-    return (f"{prefix}{sys.executable} {TALKER} --estimator talker --can-interface {{can_interface}} "
-            f"--can-channel {{can_channel}} {port_arg}--imu {{imu_port}} --gnss {{gnss_port}} --config {{config}}")
+    return dut_command(ns, port, TALKER)
 
 
 def _run(ns: str, tmp_path: Path, port: int, clock: ClockSpec, **config):
@@ -82,42 +78,8 @@ def test_a_dut_writing_1_mib_on_its_imu_line_does_not_block_and_every_byte_is_re
 
 
 def _case(tmp_path: Path, port: int) -> Path:
-    path = tmp_path / "hostile.toml"
-    path.write_text(f"""
-[case]
-id = "HOSTILE"
-title = "a DUT writing hostile text"
-requirements = ["R"]
-
-[scenario]
-script = "{SHORT}"
-
-[sensors]
-imu = {{ grade = "navigation", rate = "200 Hz" }}
-
-[dut]
-kind = "external"
-command = "{_command(None, None)}"
-config = {{ mode = "hostile_text", at_s = 1.0 }}
-startup_timeout = "60 s"  # hang guards, not speed bounds
-shutdown_timeout = "60 s"
-
-[dut.links]
-can = {{ interface = "udp_multicast", channel = "239.74.165.{port % 250}" }}
-
-[clock]
-mode = "lockstep"
-timeout = "60 s"
-
-[run]
-seeds = [1]
-
-[[criterion]]
-requirement = "R"
-metric = "accuracy.horizontal.max"
-at_most = "5 m"
-""")
-    return path
+    return external_case(tmp_path / "hostile.toml", case_id="HOSTILE", command=_command(None, None),
+                         config='{ mode = "hostile_text", at_s = 1.0 }', channel=f"239.74.165.{port % 250}")
 
 
 @pytest.mark.slow

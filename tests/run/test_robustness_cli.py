@@ -23,7 +23,16 @@ from bench.cli.app import run as bench_cli
 from bench.cli.info import describe
 from bench.errors import ConfigError, RecordingError
 from bench.record.mcap_io import RecordingReader
-from tests.run.robust_util import SHORT, alive, dut_command, group_members, log_texts, no_process_left, pids, wait_for
+from tests.run.robust_util import (
+    alive,
+    dut_command,
+    external_case,
+    group_members,
+    log_texts,
+    no_process_left,
+    pids,
+    wait_for,
+)
 
 CLI = [sys.executable, "-c", "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
        "from bench.cli import main; sys.exit(main())"]
@@ -46,44 +55,8 @@ def test_sigterm_and_sigint_raise_keyboard_interrupt_once_then_are_reported_then
 def _case(tmp_path: Path, mode: str, **config) -> Path:
     """A test case running the misbehaving DUT over udp_multicast (default port) for 90 s."""
     cfg = ", ".join(f"{k} = {json.dumps(v)}" for k, v in {"mode": mode, **config}.items())
-    text = f"""
-[case]
-id = "ROBUST"
-title = "misbehaving DUT"
-requirements = ["R"]
-
-[scenario]
-script = "{SHORT}"
-
-[sensors]
-imu = {{ grade = "navigation", rate = "200 Hz" }}
-
-[dut]
-kind = "external"
-command = "{dut_command(None, None)}"
-config = {{ {cfg} }}
-startup_timeout = "60 s"  # hang guards, not speed bounds
-shutdown_timeout = "60 s"
-
-[dut.links]
-can = {{ interface = "udp_multicast", channel = "239.74.164.201" }}
-
-[clock]
-mode = "lockstep"
-timeout = "60 s"
-
-[run]
-seeds = [1]
-truth_rate = "1000 Hz"
-
-[[criterion]]
-requirement = "R"
-metric = "accuracy.horizontal.max"
-at_most = "5 m"
-"""
-    path = tmp_path / "robust.toml"
-    path.write_text(text)
-    return path
+    return external_case(tmp_path / "robust.toml", case_id="ROBUST", command=dut_command(None, None),
+                         config=f"{{ {cfg} }}", channel="239.74.164.201", run='truth_rate = "1000 Hz"')
 
 
 def _bench_run(ns: str, case: Path, out: Path) -> subprocess.Popen:
