@@ -17,6 +17,7 @@ from bench.cli import main
 from bench.errors import ConfigError
 from bench.report.junit import junit_xml
 from bench.report.results import case_json
+from tests.acceptance.degradations import KINDS
 
 DRIVE = """
 [scenario]
@@ -58,19 +59,6 @@ metric = "accuracy.horizontal.max"
 at_most = "1 m"
 """
 
-#: corruption of the last 4 s -> the default criterion that must name it
-KINDS = {
-    "bad_crc": "INTEGRITY-bad-frames",
-    "out_of_range": "INTEGRITY-range",
-    "counter_stuck": "INTEGRITY-counter",
-    "counter_skip": "INTEGRITY-counter",
-    "time_frozen": "INTEGRITY-repeated",
-    "time_backwards": "INTEGRITY-order",
-    "time_jump": "INTEGRITY-jump",
-    "no_quality": "INTEGRITY-quality",
-    "drop": "INTEGRITY-missing",
-    "invalid": "INTEGRITY-invalid",
-}
 
 
 def _defect(kind: str | None) -> str:

@@ -22,24 +22,12 @@ from bench.acceptance.synthetic_spec import SyntheticDut
 from bench.acceptance.verdict import Verdict
 from bench.scoring.data import RunData, load_run
 from bench.scoring.metrics import Scorer
+from tests.acceptance.degradations import KINDS
 
 pytestmark = pytest.mark.slow
 
 CASES = sorted(p for p in (Path(__file__).resolve().parents[2] / "test_cases").glob("*.toml") if is_case_file(p))
 
-#: degradation of the last 40 % -> the default criterion that must name it
-KINDS = {
-    "bad_crc": "INTEGRITY-bad-frames",
-    "out_of_range": "INTEGRITY-range",
-    "counter_stuck": "INTEGRITY-counter",
-    "counter_skip": "INTEGRITY-counter",
-    "time_frozen": "INTEGRITY-repeated",
-    "time_backwards": "INTEGRITY-order",
-    "time_jump": "INTEGRITY-jump",
-    "no_quality": "INTEGRITY-quality",
-    "drop": "INTEGRITY-missing",
-    "invalid": "INTEGRITY-invalid",
-}
 #: the whole-run check per case: rotate the kinds over the cases
 WHOLE = {
     "S000_dead_reckoning.toml": "time_frozen",
