@@ -255,8 +255,10 @@ class ExternalDut:
                 self.now_ns = t
                 if i_cut[k] > i0:
                     self.serial["imu"].write(imu.buf[imu.offsets[i0] : imu.offsets[i_cut[k]]].tobytes())
+                    self.serial["imu"].deliver()  # readable by the DUT before BENCH_TIME(T) (ICD 6)
                 if g_cut[k] > g0:
                     self.serial["gnss"].write(gnss.buf[gnss.offsets[g0] : gnss.offsets[g_cut[k]]].tobytes())
+                    self.serial["gnss"].deliver()
                 if c_cut[k] > c0:
                     self.can.send_many(can.take(np.arange(c0, c_cut[k])))
                 c0, i0, g0 = c_cut[k], i_cut[k], g_cut[k]
