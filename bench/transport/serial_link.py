@@ -235,16 +235,24 @@ class PtyPair:
         return struct.unpack("i", fcntl.ioctl(self.slave_fd, termios.FIONREAD, b"\0\0\0\0"))[0]
 
     def _measure_capacity(self) -> int:
-        """Fill the line discipline once, before the DUT opens the slave, and read it back."""
+        """Fill the line discipline once, before the DUT opens the slave: what it holds
+        once the tty layer's work has stopped moving bytes in; then empty it again."""
         os.set_blocking(self.slave_fd, False)
         try:
             with contextlib.suppress(BlockingIOError):
                 os.write(self.master_fd, bytes(16384))
-            self.settle()
-            capacity = self.readable()
+            capacity, still = -1, 0
+            for _ in range(100):  # the work may be preempted between its buffers: until steady
+                self.settle()
+                held = self.readable()
+                still = still + 1 if held == capacity else 0
+                capacity = held
+                if still >= 3:
+                    break
+                time.sleep(_SETTLE_S)
             with contextlib.suppress(BlockingIOError):
-                while os.read(self.slave_fd, 65536):
-                    self.settle()
+                while os.read(self.slave_fd, 65536):  # EAGAIN only once the pending work ran
+                    pass
         finally:
             os.set_blocking(self.slave_fd, True)
         return max(capacity, 1)
