@@ -13,7 +13,6 @@ import numpy as np
 
 from bench.clock import realtime_priority
 from bench.clock.pacing import TimingLog
-from bench.frames import CanBatch
 from bench.run.result import TimingBudgetError
 from bench.run.session import RunSession
 from bench.run.traffic import Traffic
@@ -33,7 +32,7 @@ def run_realtime(s: RunSession) -> None:
         else:
             plans.append((t0, t1, steps_of(traffic, step_times), step_times))
     if s.dut_ext is not None:
-        s.dut_ext.start(CanBatch.empty(), out.feed, lambda frames: None)
+        s.dut_ext.start(None, out.feed)
     out.deferred = True
     idle = lambda slack: out.process(4)  # noqa: E731 - a few batches per slack moment
     s.rec.metadata("realtime_scheduling", realtime_priority.acquire())
