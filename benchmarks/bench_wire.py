@@ -255,8 +255,8 @@ def part2(n: int) -> None:
     else:
         with netns.multicast_netns() as ns:
             cfg = CanConfig(interface="udp_multicast", channel="239.74.163.9", options={"port": 43900})
-            tx = netns.call_in(ns, lambda: open_can_link(cfg))
-            rx = netns.call_in(ns, lambda: open_can_link(cfg))
+            tx = netns.call_in(ns, lambda: open_can_link(cfg, run_tag="wire"))  # two links of one run
+            rx = netns.call_in(ns, lambda: open_can_link(cfg, run_tag="wire"))
             try:
                 dt, got, tally = _can_round_trip(tx, rx, n)
                 _row("CAN udp_multicast (netns loopback)", got, dt, f"drops {rx.stats()['drops']}")

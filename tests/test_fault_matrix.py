@@ -90,7 +90,7 @@ def bench(*args: str, cwd: Path, timeout: float = 240, ns: str | None = None, fs
     assert "Traceback" not in outcome.text, outcome.text
     if expect is not None:
         assert p.returncode == expect, outcome.text
-    deadline = time.monotonic() + 10.0  # processes being reaped by the kernel
+    deadline = time.monotonic() + 60.0  # processes being reaped by the kernel (a hang guard)
     while (left := _marked(mark)) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert not left, f"left running: {left}"
@@ -462,15 +462,15 @@ def _external_case(tmp_path: Path, port: int, config: str) -> Path:
         kind = "external"
         command = "{command}"
         config = {config}
-        startup_timeout = "20 s"
-        shutdown_timeout = "2 s"
+        startup_timeout = "60 s"
+        shutdown_timeout = "60 s"
 
         [dut.links]
         can = {{ interface = "udp_multicast", channel = "239.74.166.{port % 250}" }}
 
         [clock]
         mode = "lockstep"
-        timeout = "5 s"
+        timeout = "60 s"
 
         [run]
         seeds = [1]

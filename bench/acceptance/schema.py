@@ -7,6 +7,7 @@ Each ``_section`` function reads one table with :class:`~bench.config.table.Tabl
 
 from __future__ import annotations
 
+import ipaddress
 import re
 import string
 from collections.abc import Callable, Mapping
@@ -48,10 +49,11 @@ TOP_KEYS = (
 )
 SENSORS = ("imu", "doppler", "odometer", "bds", "driver")
 COMMANDS = {"grid": 1, "geographic": 2, "reset": 3}
-COMMAND_PLACEHOLDERS = ("can_interface", "can_channel", "imu_port", "gnss_port", "config")
+COMMAND_PLACEHOLDERS = ("can_interface", "can_channel", "can_port", "imu_port", "gnss_port", "config")
 #: link name -> key -> (checker kind, description)
 LINK_KEYS: dict[str, dict[str, str]] = {
-    "can": {"interface": "str", "channel": "str", "bitrate": "int", "data_bitrate": "int", "fd": "bool"},
+    "can": {"interface": "str", "channel": "str", "bitrate": "int", "data_bitrate": "int", "fd": "bool",
+            "port": "port", "interface_address": "str"},
     "imu": {"port": "str", "baud": "int"},
     "gnss": {"port": "str", "baud": "int", "talker": "str"},
 }
@@ -266,13 +268,42 @@ def _links(t: Table | None) -> dict[str, dict[str, Any]]:
         vals: dict[str, Any] = {}
         for k, kind in LINK_KEYS[name].items():
             get = {"str": lt.str, "bool": lt.bool}.get(kind)
-            v = get(k) if get else lt.int(k, minimum=1, bound="baud")  # baud and bit rates
+            if get:
+                v = get(k)
+            elif kind == "port":
+                v = lt.int(k, minimum=1, maximum=65_535)
+            else:
+                v = lt.int(k, minimum=1, bound="baud")  # baud and bit rates
             if v is not None:
                 vals[k] = v
         lt.finish()
+        if name == "can":
+            _udp_keys(lt, vals)
         out[name] = vals
     t.finish()
     return out
+
+
+def _udp_keys(t: Table, vals: Mapping[str, Any]) -> None:
+    """``port`` and ``interface_address`` are udp_multicast's; its channel is an IPv4
+    multicast group and its interface address an IPv4 address."""
+    iface = vals.get("interface", "virtual")
+    udp = iface == "udp_multicast"
+    for k in ("port", "interface_address"):
+        if k in vals and not udp:
+            raise t.error(k, f"{k} is a udp_multicast setting, but the interface is {iface!r}")
+    if not udp:
+        return
+    for k, want in (("channel", "an IPv4 multicast group (224.0.0.0/4, e.g. 239.74.163.2)"),
+                    ("interface_address", "the IPv4 address of an interface (127.0.0.1 for the loopback)")):
+        if k not in vals:
+            continue
+        try:
+            addr = ipaddress.ip_address(vals[k])
+        except ValueError:
+            addr = None
+        if not isinstance(addr, ipaddress.IPv4Address) or (k == "channel" and not addr.is_multicast):
+            raise t.error(k, f"expected {want}, found {vals[k]!r}")
 
 
 def _dut(t: Table, base: Path | None, check_files: bool) -> DutSpec:

@@ -83,10 +83,21 @@ def describe(path: str) -> dict:
             out["faults_error"] = str(exc)
     out["span_s"] = None if t_min is None or t_max is None else [t_min * 1e-9, t_max * 1e-9]
     out["attachments"] = {k: len(v) for k, v in r.attachments().items()}
+    out["can_link"] = _can_link(md.get("dut_exit", {}))
     end = md.get("run_end")
     out["ended"] = end if end else {"status": "unfinished", "reason": "the recording was not closed (killed?)"}
     r.close()
     return out
+
+
+def _can_link(dut_exit: Any) -> dict | None:
+    """The CAN link's counts of an external DUT's run (``dut_exit`` ``can_link``), if any."""
+    raw = dut_exit.get("can_link") if isinstance(dut_exit, dict) else None
+    try:
+        value = json.loads(raw) if isinstance(raw, str) else raw
+    except ValueError:
+        return None
+    return value if isinstance(value, dict) else None
 
 
 def _shown(obj: Any) -> Any:
@@ -150,6 +161,12 @@ def _run(args: argparse.Namespace) -> int:
             print(_fault_line(f))
     if d["attachments"]:
         print("  attachments: " + _visible(", ".join(f"{k} ({v} B)" for k, v in d["attachments"].items())))
+    link = d["can_link"]
+    if link:
+        names = {"other_bench": "other benches' frames", "error_frames": "error frames"}
+        counts = ", ".join(f"{names.get(k, k)} {v}" for k, v in link.items() if k not in ("interface", "port"))
+        where = f"{link.get('interface')}" + (f" port {link['port']}" if link.get("port") else "")
+        print(_visible(f"  can link ({where}): {counts}"))
     end = d["ended"]
     print(_visible(f"  ended: {end.get('status')}" + (f" ({end['reason']})" if end.get("reason") else "")))
     return 0

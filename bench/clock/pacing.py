@@ -73,6 +73,7 @@ class RealTimeClock(Clock):
         if speed <= 0.0:
             raise ValueError(f"speed must be positive, found {speed}")
         self.speed = float(speed)
+        self._num, self._den = self.speed.as_integer_ratio()  # exact: never early by a rounding
         self.spin_ns = int(spin_ns)
         self._t0 = 0
         self._origin = 0
@@ -82,10 +83,10 @@ class RealTimeClock(Clock):
         self._origin = int(origin_ns)
 
     def _wall(self, t_ns: int) -> int:
-        return self._t0 + int((t_ns - self._origin) / self.speed)
+        return self._t0 - (self._origin - t_ns) * self._den // self._num  # rounded up
 
     def now_ns(self) -> int:
-        return self._origin + int((time.monotonic_ns() - self._t0) * self.speed)
+        return self._origin + (time.monotonic_ns() - self._t0) * self._num // self._den  # rounded down
 
     def wait_until(self, t_ns: int) -> int:
         due = self._wall(t_ns)

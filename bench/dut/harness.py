@@ -1,7 +1,7 @@
 """Run an in-process estimator as an external DUT on real links (ICD 5 and 6).
 
     python -m bench.dut.harness --estimator dead_reckoning \\
-        --can-interface {can_interface} --can-channel {can_channel} \\
+        --can-interface {can_interface} --can-channel {can_channel} --can-port {can_port} \\
         --imu {imu_port} --gnss {gnss_port} --config {config}
 
 is a test case's ``[dut] command`` that puts a Python estimator behind the same wire a
@@ -12,6 +12,11 @@ the same decoded inputs the in-process adapter gives it, sends its epochs as
 NAV_SOLUTION/NAV_QUALITY frames, and in lockstep answers every BENCH_TIME(T) with
 DUT_READY(T). SIGTERM ends it cleanly. It is the bench's reference external DUT.
 
+On udp_multicast it tags its frames with the run tag the bench puts in its environment
+(``BENCH_CAN_RUN_TAG``), so it takes only its own bench's frames even when another run
+shares the group and port (:mod:`bench.transport.udp`); started by hand, without the
+variable, it takes every bench's frames.
+
 It also stops by itself when the bench hangs up its serial lines (a pty slave reads EIO
 once the bench's master end is closed): a bench killed with SIGKILL, which cannot stop
 its DUT, does not leave this process behind.
@@ -21,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import signal
 import sys
 from collections.abc import Sequence
@@ -35,6 +41,7 @@ from bench.frames import CanBatch
 from bench.topics import NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE
 from bench.transport.can_link import CanConfig, open_can_link
 from bench.transport.serial_link import SerialConfig, open_serial_link
+from bench.transport.udp import RUN_TAG_ENV
 from bench.wire.can import CanEncoder, codec
 from bench.wire.imu import IMU_SAMPLE_DTYPE
 from bench.wire.nmea import GNSS_FIX_DTYPE
@@ -54,7 +61,7 @@ class Harness:
 
     def __init__(self, estimator_name: str, config: dict, *, can: CanConfig, imu_port: str, gnss_port: str):
         self.estimator = create_estimator(estimator_name, config)
-        self.can = open_can_link(can)
+        self.can = open_can_link(can, run_tag=os.environ.get(RUN_TAG_ENV, ""))  # the bench's run: its frames only
         self.imu = open_serial_link(SerialConfig(port=imu_port, baudrate=460_800))
         self.gnss = open_serial_link(SerialConfig(port=gnss_port, baudrate=115_200))
         self.decoder = InputDecoder()
@@ -187,13 +194,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--estimator", required=True, help="registered estimator name")
     p.add_argument("--can-interface", default="virtual")
     p.add_argument("--can-channel", default=None)
-    p.add_argument("--can-port", type=int, help="udp_multicast port")
+    p.add_argument("--can-port", type=int, help="udp_multicast port (the bench's {can_port}; 0: 43113)")
+    p.add_argument("--can-interface-address", help="udp_multicast: IPv4 address of the interface (127.0.0.1)")
     p.add_argument("--imu", required=True, help="serial port of the imu line")
     p.add_argument("--gnss", required=True, help="serial port of the gnss line")
     p.add_argument("--config", help="JSON file with the estimator's configuration")
     args = p.parse_args(argv)
     config = json.loads(Path(args.config).read_text()) if args.config else {}
-    options = {"port": args.can_port} if args.can_port else {}
+    options = {}
+    if args.can_interface == "udp_multicast":
+        options = {"port": args.can_port} if args.can_port else {}
+        if args.can_interface_address:
+            options["interface_address"] = args.can_interface_address
     can = CanConfig(interface=args.can_interface, channel=args.can_channel, options=options)
     harness = Harness(args.estimator, config, can=can, imu_port=args.imu, gnss_port=args.gnss)
 

@@ -1,10 +1,11 @@
 """An estimator under test running as another process (ICD section 5).
 
 The bench starts it from the test case's command line with the placeholders
-``{can_interface}``, ``{can_channel}``, ``{imu_port}``, ``{gnss_port}`` and ``{config}``
-filled in, in a session of its own (so the whole process group can be ended), captures
-its standard output and error line by line with bench timestamps, notices when it dies,
-and on shutdown sends SIGTERM to the group, waits the shutdown timeout, then SIGKILLs the
+``{can_interface}``, ``{can_channel}``, ``{can_port}`` (the udp_multicast port; 0 on
+other interfaces), ``{imu_port}``, ``{gnss_port}`` and ``{config}`` filled in, in a
+session of its own (so the whole process group can be ended), captures its standard
+output and error line by line with bench timestamps, notices when it dies, and on
+shutdown sends SIGTERM to the group, waits the shutdown timeout, then SIGKILLs the
 group: no process of the group is left whatever the DUT does (a DUT that puts children
 in sessions of their own, or a bench killed with SIGKILL, are the limits; see
 ``docs/run_engine.md``, "How a run ends").
@@ -20,6 +21,7 @@ import contextlib
 import os
 import shlex
 import signal
+import string
 import subprocess
 import threading
 import time
@@ -30,9 +32,9 @@ from pathlib import Path
 
 from bench.errors import ConfigError, DutError
 
-__all__ = ["DutProcess", "LogLine", "fill_placeholders", "PLACEHOLDERS"]
+__all__ = ["DutProcess", "LogLine", "fill_placeholders", "uses_placeholder", "PLACEHOLDERS"]
 
-PLACEHOLDERS = ("can_interface", "can_channel", "imu_port", "gnss_port", "config")
+PLACEHOLDERS = ("can_interface", "can_channel", "can_port", "imu_port", "gnss_port", "config")
 _MAX_LINE = 64 * 1024
 
 
@@ -66,6 +68,14 @@ def fill_placeholders(command: str, values: Mapping[str, str]) -> list[str]:
     if not out:
         raise ConfigError("the DUT command line is empty", key="dut.command")
     return out
+
+
+def uses_placeholder(command: str | None, name: str) -> bool:
+    """Whether ``command`` has the placeholder ``{name}`` (not a doubled, literal brace)."""
+    try:
+        return any(field == name for _, field, _, _ in string.Formatter().parse(command or ""))
+    except ValueError:  # fill_placeholders names what is wrong with the command
+        return False
 
 
 class DutProcess:

@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.clock.pacing import Clock, TimingLog
-from bench.dut.process import DutProcess, LogLine, describe_exit, fill_placeholders
+from bench.dut.process import DutProcess, LogLine, describe_exit, fill_placeholders, uses_placeholder
 from bench.errors import ConfigError, DutError, LinkError
 from bench.frames import CanBatch, SerialBatch
 from bench.run.realtime_plan import EMIT_CAN, EMIT_IMU, RealtimePlan, plan_emissions
@@ -47,6 +47,7 @@ from bench.textsafe import for_terminal
 from bench.transport.can_link import CanConfig, CanLink, open_can_link
 from bench.transport.serial_link import SerialConfig, SerialLink, open_serial_link
 from bench.transport.serial_reader import SerialReader
+from bench.transport.udp import RUN_TAG_ENV, UdpMulticastCanLink
 from bench.wire.can import codec
 
 __all__ = ["ExternalDut", "RealtimePlan", "serial_config", "can_config"]
@@ -63,9 +64,13 @@ def serial_config(table: dict, key: str, default_baud: int) -> SerialConfig:
     return SerialConfig.from_mapping(t, key=f"dut.links.{key}")
 
 
-def can_config(table: dict) -> CanConfig:
-    """A :class:`CanConfig` from ``[dut.links] can``."""
-    return CanConfig.from_mapping(table, key="dut.links.can")
+def can_config(table: dict, *, free_port: bool = False) -> CanConfig:
+    """A :class:`CanConfig` from ``[dut.links] can``; ``free_port``: a udp_multicast link
+    without a ``port`` takes a free one (the DUT learns it from ``{can_port}``)."""
+    cfg = CanConfig.from_mapping(table, key="dut.links.can")
+    if free_port and cfg.interface == "udp_multicast" and "port" not in cfg.options:
+        cfg.options["port"] = 0
+    return cfg
 
 
 class ExternalDut:
@@ -110,7 +115,8 @@ class ExternalDut:
         self.imu_baud = int(links.imu.get("baud", 460_800))
         self.gnss_baud = int(links.gnss.get("baud", 115_200))
         try:
-            self.can = open_can_link(can_config(links.can), clock=lambda: self.now_ns)
+            free = spec.kind == "external" and uses_placeholder(spec.command, "can_port")
+            self.can = open_can_link(can_config(links.can, free_port=free), clock=lambda: self.now_ns)
             self.serial["imu"] = open_serial_link(serial_config(links.imu, "imu", 460_800))
             self.serial["gnss"] = open_serial_link(serial_config(links.gnss, "gnss", 115_200))
             for name, link in self.serial.items():
@@ -126,9 +132,13 @@ class ExternalDut:
         cfg_path = Path(self._tmp.name) / "dut_config.json"
         cfg_path.write_text(json.dumps(self.spec.config, indent=2, default=str))
         assert self.can is not None
+        env = dict(self.spec.env)
+        if isinstance(self.can, UdpMulticastCanLink):
+            env[RUN_TAG_ENV] = self.can.run_tag  # a DUT that tags takes this run's frames only
         values = {
             "can_interface": str(self.can.config.interface),
             "can_channel": str(self.can.config.resolved_channel),
+            "can_port": str(self.can.port if isinstance(self.can, UdpMulticastCanLink) else 0),
             "imu_port": self.serial["imu"].dut_port or str(self.serial["imu"].config.port),
             "gnss_port": self.serial["gnss"].dut_port or str(self.serial["gnss"].config.port),
             "config": str(cfg_path),
@@ -136,9 +146,7 @@ class ExternalDut:
         if not self.spec.command:
             raise ConfigError("an external DUT needs its command line", key="dut.command")
         argv = fill_placeholders(self.spec.command, values)
-        self.process = DutProcess(
-            argv, cwd=self.spec.cwd, env=self.spec.env, shutdown_timeout_s=self.spec.shutdown_timeout_s
-        )
+        self.process = DutProcess(argv, cwd=self.spec.cwd, env=env, shutdown_timeout_s=self.spec.shutdown_timeout_s)
 
     def _check_process(self, when: str = "") -> None:
         """Raise :class:`DutError` if the DUT process has ended, with its exit status and
@@ -297,20 +305,20 @@ class ExternalDut:
         if self.ready_ns >= t_ns:  # answered already
             return
         deadline = time.monotonic() + timeout_s
-        n = 0
+        n0, odd0 = self.can.peer_frames, self.can.remote + self.can.error_frames  # every frame counts
         while True:
             got = self.can.drain(timeout=0.02, max_frames=4096)
             if len(got):
-                n += len(got)
                 received(got)
-                if n > flood:
-                    self._flush_lines()
-                    raise DutError(
-                        f"the DUT floods the bus: {n} frames within the step ending at "
-                        f"{t_ns / 1e9:.3f} s (limit {flood})"
-                    )
-                if self._ready_at_least(got, t_ns):
-                    return
+            n = self.can.peer_frames - n0
+            if n > flood:
+                self._flush_lines()
+                raise DutError(
+                    f"the DUT floods the bus: {n} frames{self._odd_frames(odd0)} within the step ending at "
+                    f"{t_ns / 1e9:.3f} s (limit {flood})"
+                )
+            if len(got) and self._ready_at_least(got, t_ns):
+                return
             self._check_process()
             if time.monotonic() > deadline:
                 self._flush_lines()
@@ -318,6 +326,12 @@ class ExternalDut:
                     f"no DUT_READY for bench time {t_ns / 1e9:.3f} s within {timeout_s:g} s "
                     "(the DUT hangs or ignores the lockstep protocol)" + self._tail()
                 )
+
+    def _odd_frames(self, since: int) -> str:
+        """`` (k of them remote or error frames)`` since the count ``since``, or nothing."""
+        assert self.can is not None
+        k = self.can.remote + self.can.error_frames - since
+        return f" ({k} of them remote or error frames)" if k else ""
 
     # ------------------------------------------------------------------ real time
     def plan_realtime(self, traffic: Traffic) -> RealtimePlan:
@@ -351,7 +365,7 @@ class ExternalDut:
     ) -> None:
         assert self.can is not None
         send_can, write_imu, write_gnss = self.can.send, self.serial["imu"].write, self.serial["gnss"].write
-        n_rx = 0
+        n0, odd0 = self.can.peer_frames, self.can.remote + self.can.error_frames  # every frame counts
         k = 0
         next_check = self.now_ns  # the DUT process is checked every 100 ms of bench time
         times, kinds, index = plan.times, plan.kinds, plan.index
@@ -372,11 +386,13 @@ class ExternalDut:
             self.now_ns = clock.now_ns()
             got = self.can.drain(timeout=0.0)
             if len(got):
-                n_rx += len(got)
                 received(got)
-                if n_rx > flood:
-                    self._flush_lines()
-                    raise DutError(f"the DUT floods the bus: {n_rx} frames in one window (limit {flood})")
+            if self.can.peer_frames - n0 > flood:
+                self._flush_lines()
+                raise DutError(
+                    f"the DUT floods the bus: {self.can.peer_frames - n0} frames{self._odd_frames(odd0)} "
+                    f"in one window (limit {flood})"
+                )
             if idle is not None and k < n:
                 slack = times[k] - clock.now_ns()
                 if slack > 5_000_000:
@@ -423,6 +439,7 @@ class ExternalDut:
                 if rx:
                     facts["serial_rx_bytes"] = rx
                 if self.can is not None:
+                    facts["can_link"] = {"interface": self.can.config.interface, **self.can.stats()}
                     self.can.close()
                     self.can = None
                 for link in self.serial.values():

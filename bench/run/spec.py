@@ -56,7 +56,8 @@ class DutSpec:
 @dataclass
 class LinkSpec:
     """Link settings as the test case writes them (``[dut.links]``): ``can`` (python-can
-    interface, channel, bitrate, data_bitrate, fd), ``imu`` and ``gnss`` (``port``: ``pty``,
+    interface, channel, bitrate, data_bitrate, fd; on udp_multicast also port and
+    interface_address, see :mod:`bench.transport.udp`), ``imu`` and ``gnss`` (``port``: ``pty``,
     a device path or a pyserial URL such as ``loop://``; ``baud``), ``talker`` of NMEA."""
 
     can: dict[str, Any] = field(default_factory=dict)

@@ -12,11 +12,19 @@ touch ``can.Message``.
 * ``socketcan``: Linux SocketCAN, ``vcan0`` for cross-process runs on one machine. A
   missing interface is reported with the one-time setup
   ``ip link add dev vcan0 type vcan; ip link set up vcan0``.
-* ``udp_multicast``: python-can's multicast bus, where neither fits (CI containers,
-  network namespaces); see :mod:`bench.transport.udp` for the sequence numbers and the
-  drop count.
+* ``udp_multicast``: python-can's multicast wire format where neither fits (CI
+  containers, network namespaces) on a socket bound to the group on the loopback (or
+  the ``interface_address`` given), never on every address; see :mod:`bench.transport.udp`
+  for the port, the run tag that filters other benches, the sequence numbers and the
+  counts of foreign datagrams.
 * ``interface=None``: python-can resolves everything from its configuration file or
   ``CAN_INTERFACE``/``CAN_CHANNEL``/``CAN_BITRATE`` environment variables.
+
+Receiving never waits on a flood: one :meth:`CanLink.recv` or :meth:`CanLink.drain`
+handles at most :attr:`CanLink.drain_limit` messages and returns by its timeout however
+many keep coming. Remote (RTR) and error frames carry no ICD message and are not
+returned, but they are counted (``remote``, ``error_frames``) and, like every frame a
+peer sends, in :attr:`CanLink.peer_frames`, which a flood limit is checked against.
 
 Time stamps: a sent frame's ``t_ns`` (bench time) goes out as the message timestamp in
 seconds. A received frame gets ``t_ns`` from the link's ``clock`` (bench time now) when
@@ -27,6 +35,7 @@ one is given, else the message timestamp converted to ns (the sender's bench tim
 from __future__ import annotations
 
 import socket
+import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -37,12 +46,16 @@ import can
 from bench.errors import ConfigError, LinkError
 from bench.frames import CanBatch, CanFrame
 
-__all__ = ["CanConfig", "CanLink", "open_can_link", "socketcan_unavailable", "VCAN_SETUP"]
+__all__ = ["CanConfig", "CanLink", "open_can_link", "socketcan_unavailable", "VCAN_SETUP", "SKIPPED"]
 
 #: The one-time setup of a virtual SocketCAN interface (as root).
 VCAN_SETUP = "ip link add dev {ch} type vcan; ip link set up {ch}"
 
 _DEFAULT_CHANNELS = {"virtual": "bench", "socketcan": "vcan0", "udp_multicast": "239.74.163.2"}
+
+#: What :meth:`CanLink._receive` returns for something that arrived but is no message
+#: (a stray datagram): the receive loop goes on, the link has counted it.
+SKIPPED = object()
 
 
 @dataclass
@@ -87,6 +100,10 @@ class CanConfig:
                 file=file,
                 key=f"{key}.interface",
             )
+        if iface == "udp_multicast":
+            from bench.transport.udp import check_udp_config
+
+            check_udp_config(kwargs.get("channel"), options, file=file, key=key)
         return cls(**kwargs, options=options)
 
     @property
@@ -151,11 +168,19 @@ class CanLink:
         Bench time now, ns; stamps received frames (None: use message timestamps).
     """
 
+    #: The most messages one :meth:`recv` or :meth:`drain` handles before it returns.
+    drain_limit = 65_536
+
     def __init__(self, config: CanConfig | None = None, *, clock: Callable[[], int] | None = None):
         self.config = config or CanConfig()
         self.clock = clock
         self.sent = 0
         self.received = 0
+        #: Remote (RTR) and error frames received (counted, not returned).
+        self.remote = 0
+        self.error_frames = 0
+        #: Every frame a peer sent that reached this link: data, remote and error frames.
+        self.peer_frames = 0
         self._closed = True  # until the bus is open
         if self.config.interface == "socketcan":
             reason = socketcan_unavailable(str(self.config.resolved_channel))
@@ -189,7 +214,13 @@ class CanLink:
         )
 
     def _from_message(self, msg: can.Message) -> CanFrame | None:
-        if msg.is_error_frame or msg.is_remote_frame:
+        """The frame of a peer's message; None (counted) for remote and error frames."""
+        self.peer_frames += 1
+        if msg.is_error_frame:
+            self.error_frames += 1
+            return None
+        if msg.is_remote_frame:
+            self.remote += 1
             return None
         t_ns = self.clock() if self.clock is not None else round(msg.timestamp * 1e9)
         return CanFrame(int(t_ns), int(msg.arbitration_id), bytes(msg.data), bool(msg.is_fd))
@@ -229,35 +260,58 @@ class CanLink:
             self._send_message(self._to_message(t[i], ids[i], flat[start : start + lengths[i]], fds[i]), timeout)
         return n
 
+    def _receive(self, timeout: float | None) -> can.Message | object | None:
+        """The next message from the bus within ``timeout`` s (None: forever); None when
+        nothing came, :data:`SKIPPED` for something that is no message."""
+        try:
+            return self.bus.recv(timeout)
+        except can.CanError as exc:
+            raise LinkError(f"{self!r}: receiving failed: {exc}") from exc
+
     def recv(self, timeout: float | None = 0.0) -> CanFrame | None:
         """The next frame, waiting up to ``timeout`` s (None: forever); None if none came."""
-        self._check_open()
-        while True:
-            try:
-                msg = self.bus.recv(timeout)
-            except can.CanError as exc:
-                raise LinkError(f"{self!r}: receiving failed: {exc}") from exc
-            if msg is None:
-                return None
-            frame = self._from_message(msg)
-            if frame is not None:
-                self.received += 1
-                return frame
+        got = self._collect(timeout, 1)
+        return got[0] if got else None
 
     def drain(self, timeout: float | None = 0.0, max_frames: int | None = None) -> CanBatch:
-        """Every frame that is pending, waiting up to ``timeout`` s for the first one."""
-        frames: list[CanFrame] = []
-        first = self.recv(timeout)
-        while first is not None:
-            frames.append(first)
-            if max_frames is not None and len(frames) >= max_frames:
-                break
-            first = self.recv(0.0)
+        """Every frame that is pending, waiting up to ``timeout`` s for the first one.
+
+        Messages that are not returned (remote and error frames, a stray datagram, own or
+        another bench's frames) do not restart the wait: it ends at ``timeout`` whatever
+        arrives, and after :attr:`drain_limit` messages at most."""
+        frames = self._collect(timeout, self.drain_limit if max_frames is None else max_frames)
         return CanBatch.from_frames(frames) if frames else CanBatch.empty()
 
+    def _collect(self, timeout: float | None, max_frames: int) -> list[CanFrame]:
+        self._check_open()
+        frames: list[CanFrame] = []
+        limit = max(1, min(max_frames, self.drain_limit))
+        deadline = None if timeout is None else time.monotonic() + timeout
+        wait = timeout
+        for _ in range(self.drain_limit):
+            msg = self._receive(wait)
+            if msg is None:
+                break
+            frame = None if msg is SKIPPED else self._from_message(msg)  # type: ignore[arg-type]
+            if frame is not None:
+                self.received += 1
+                frames.append(frame)
+                if len(frames) >= limit:
+                    break
+                wait = 0.0
+            elif not frames and deadline is not None:  # still waiting for the first frame
+                wait = max(0.0, deadline - time.monotonic())
+        return frames
+
     def stats(self) -> dict[str, int]:
-        """Frames sent and received (subclasses add their own counts)."""
-        return {"sent": self.sent, "received": self.received}
+        """Frames sent and received, remote and error frames received (subclasses add
+        their own counts)."""
+        return {
+            "sent": self.sent,
+            "received": self.received,
+            "remote": self.remote,
+            "error_frames": self.error_frames,
+        }
 
     # ---------------------------------------------------------------- lifetime
     def close(self) -> None:
@@ -283,11 +337,14 @@ class CanLink:
             self.close()
 
 
-def open_can_link(config: CanConfig | None = None, *, clock: Callable[[], int] | None = None) -> CanLink:
-    """The link class for ``config.interface`` (udp_multicast gets sequence numbers)."""
+def open_can_link(
+    config: CanConfig | None = None, *, clock: Callable[[], int] | None = None, run_tag: str | None = None
+) -> CanLink:
+    """The link class for ``config.interface`` (udp_multicast: isolated, with sequence
+    numbers; ``run_tag`` as :class:`~bench.transport.udp.UdpMulticastCanLink` takes it)."""
     config = config or CanConfig()
     if config.interface == "udp_multicast":
         from bench.transport.udp import UdpMulticastCanLink
 
-        return UdpMulticastCanLink(config, clock=clock)
+        return UdpMulticastCanLink(config, clock=clock, run_tag=run_tag)
     return CanLink(config, clock=clock)

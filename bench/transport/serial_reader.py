@@ -13,7 +13,8 @@ emission loop unless the DUT really writes; a link without a descriptor (a pyser
 is polled every 50 ms. When more than ``max_pending`` bytes wait to be taken it stops
 reading until they are, so the far end waits as on a full line rather than the bench's
 memory growing without bound. :meth:`SerialReader.close` stops the thread, reads what is
-left and returns it; close the reader before the link.
+left on the line (up to ``max_pending`` more bytes, whatever is still waiting to be taken)
+and returns it; close the reader before the link.
 """
 
 from __future__ import annotations
@@ -130,9 +131,11 @@ class SerialReader:
             for wake in (self._wake_r, self._wake_w):
                 os.close(wake)
         if not self._thread.is_alive() and self.error is None and not self.link.closed:
-            try:  # what is left, bounded: a device that never stops talking cannot hold the close
-                while self._pending < self.max_pending and (data := self.link.read(timeout=0.0, max_bytes=_READ_MAX)):
+            budget = self.max_pending  # what is left, bounded: a device that never stops talking cannot hold the close
+            try:
+                while budget > 0 and (data := self.link.read(timeout=0.0, max_bytes=min(_READ_MAX, budget))):
                     self._keep(data)
+                    budget -= len(data)
             except Exception as exc:
                 self.error = exc
         return self.take()

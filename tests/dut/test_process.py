@@ -7,6 +7,10 @@ import pytest
 from bench.dut.process import DutProcess, describe_exit, fill_placeholders
 from bench.errors import ConfigError, DutError
 
+#: Hang guard of the waits below, s (a process that has not exited or spoken within a
+#: minute hangs); never a speed bound.
+HANG_S = 60.0
+
 
 def _alive(pid: int) -> bool:
     try:
@@ -38,7 +42,7 @@ def test_output_is_captured_and_exit_is_reported():
     with DutProcess(
         [sys.executable, "-c", "import sys; print('hello'); print('oops', file=sys.stderr); sys.exit(3)"]
     ) as p:
-        deadline = time.monotonic() + 10
+        deadline = time.monotonic() + HANG_S
         while p.poll() is None and time.monotonic() < deadline:
             time.sleep(0.01)
         with pytest.raises(DutError, match="with code 3"):
@@ -54,7 +58,7 @@ def test_a_dut_ignoring_sigterm_and_its_children_are_killed():
         "print(c.pid, flush=True); time.sleep(60)"
     )
     p = DutProcess([sys.executable, "-c", code], shutdown_timeout_s=0.5)
-    deadline = time.monotonic() + 10
+    deadline = time.monotonic() + HANG_S
     child = None
     while child is None and time.monotonic() < deadline:
         for ln in p.take_lines():
@@ -64,7 +68,7 @@ def test_a_dut_ignoring_sigterm_and_its_children_are_killed():
     assert child is not None
     p.close()
     assert not p.terminated_in_time
-    deadline = time.monotonic() + 5
+    deadline = time.monotonic() + HANG_S
     while (_alive(p.pid) or _alive(child)) and time.monotonic() < deadline:
         time.sleep(0.01)
     assert not _alive(child), "a child of the DUT outlived the run"

@@ -1,5 +1,13 @@
 """The run engine end to end: in process and as an external process over pty + CAN,
-lockstep and real time, determinism, replay, wire faults seen by the DUT."""
+lockstep and real time, determinism, replay, wire faults seen by the DUT.
+
+Nothing here asserts how fast this machine is: real-time runs are checked for their
+mechanism (every emission made, in order, its lateness measured and recorded, the
+answers received in order and complete), the timing figures are in
+benchmarks/bench_run.py. The time limits given to external DUTs (start-up, the lockstep
+wait, the shutdown) are hang guards of :data:`HANG_S`, so a loaded machine is slower,
+never failed.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bench.clock.pacing import TimingBudget, TimingLog
 from bench.faults.schedule import FaultSchedule, parse_schedule
 from bench.record.mcap_io import RecordingReader
 from bench.record.wire_topics import CAN_TX_DTYPE, can_batch, can_records
@@ -21,6 +30,9 @@ from bench.scenario.loader import load_scenario
 from bench.sensors.suite import load_fault_kinds
 from tests.transport import netns
 
+#: Hang guard of the external DUTs here (start-up, lockstep wait, shutdown), s: a DUT that
+#: does not answer within a minute hangs. Never a speed bound.
+HANG_S = 60.0
 DATA = Path(__file__).parent.parent / "data"
 SHORT = DATA / "short_drive.toml"
 DR = {"initial_position": [34.246, 108.909, 380.0], "alignment": "4 s"}
@@ -148,16 +160,19 @@ def test_replay_with_other_wire_faults_re_encodes_the_samples(tmp_path):
 
 
 def test_real_time_run_measures_lateness_and_enforces_its_budget(tmp_path):
-    from bench.clock.pacing import TimingBudget
-
     res = run(_spec(tmp_path / "rt.mcap", clock=ClockSpec(mode="realtime", speed=2.0), duration_s=8.0))
     assert res.ok, res.reason
     r = RecordingReader(res.path)
     timing = r.read_columnar("/bench/timing")
-    assert len(timing) == 801 and np.all(timing["lateness_ns"] >= 0)
-    assert np.median(timing["lateness_ns"]) < 1_000_000  # ns: on time, step after step
-    assert res.timing is not None and res.timing.count == 801
-    assert len(r.read_columnar("/dut/nav_solution")) == 801
+    # every step paced and recorded, in order, with the lateness measured (not assumed 0)
+    assert np.array_equal(timing["t_ns"], np.arange(801) * 10_000_000)
+    assert np.all(timing["lateness_ns"] >= 0) and np.any(timing["lateness_ns"] > 0)
+    assert res.timing == TimingLog.summarize(timing["lateness_ns"])  # the summary is of what was recorded
+    md = r.metadata()["timing_summary"]
+    assert int(md["count"]) == 801 and float(md["max_ns"]) == float(timing["lateness_ns"].max())
+    sol = r.read_columnar("/dut/nav_solution")
+    assert np.array_equal(sol["t_ns"], timing["t_ns"])  # the DUT stepped at every paced time
+    # a budget no run can meet (1 ns) ends it as a timing ERROR, whatever this machine's speed
     late = run(_spec(tmp_path / "late.mcap", duration_s=2.0,
                      clock=ClockSpec(mode="realtime", speed=8.0, budget=TimingBudget(p99_ns=1, max_ns=1))))
     assert late.status == "timing_budget" and "budget missed" in late.reason
@@ -170,12 +185,17 @@ def _external_cmd(ns: str, port: int) -> str:
             "--imu {imu_port} --gnss {gnss_port} --config {config}")
 
 
+def _external_dut(ns: str, port: int, config: dict) -> DutSpec:
+    return DutSpec("external", command=_external_cmd(ns, port), config=config, startup_timeout_s=HANG_S,
+                   shutdown_timeout_s=HANG_S)
+
+
 def _external(tmp_path: Path, name: str, *, group: str, port: int, **kw):
     reason = netns.unavailable()
     if reason:
         pytest.skip(f"udp_multicast between processes needs a network namespace: {reason}")
     with netns.multicast_netns() as ns:
-        spec = _spec(tmp_path / name, dut=DutSpec("external", command=_external_cmd(ns, port), config=DR),
+        spec = _spec(tmp_path / name, dut=_external_dut(ns, port, DR),
                      links=LinkSpec(can={"interface": "udp_multicast", "channel": group, "port": port}), **kw)
         return netns.call_in(ns, lambda: run(spec))
 
@@ -184,7 +204,7 @@ def _external(tmp_path: Path, name: str, *, group: str, port: int, **kw):
 def test_external_process_over_pty_and_can_equals_in_process(tmp_path):
     inproc = run(_spec(tmp_path / "in.mcap", seed=9, duration_s=30.0))
     ext = _external(tmp_path, "ext.mcap", group="239.74.163.41", port=43341, seed=9, duration_s=30.0,
-                    clock=ClockSpec(step_ns=100_000_000))
+                    clock=ClockSpec(step_ns=100_000_000, timeout_s=HANG_S))
     assert inproc.ok and ext.ok, ext.reason
     assert _same_traffic(_sensor_traffic(inproc.path), _sensor_traffic(ext.path))
     assert np.array_equal(_nav(inproc.path), _nav(ext.path))  # the same estimator, bit for bit
@@ -200,11 +220,17 @@ def test_external_process_in_real_time(tmp_path):
                     clock=ClockSpec(mode="realtime", speed=1.0))
     assert ext.ok, ext.reason
     r = RecordingReader(ext.path)
+    timing = r.read_columnar("/bench/timing")
+    assert ext.timing == TimingLog.summarize(timing["lateness_ns"]) and ext.timing.count > 1000  # every emission
+    assert np.all(np.diff(timing["t_ns"]) > 0) and np.all(timing["lateness_ns"] >= 0)
     sol = r.read_columnar("/dut/nav_solution")
-    assert len(sol) >= 490  # 100 Hz; the last few may still be in flight when the run ends
-    latency = (sol["rx_ns"] - sol["t_ns"]) * 1e-6
-    assert np.median(latency) < 50.0  # ms: the DUT answers as the traffic flows
-    assert ext.timing is not None and ext.timing.count > 1000
+    # the DUT answered the BENCH_TIMEs as they came: in order, none missing up to its last
+    # answer, none before its time (no bound on how late: a loaded machine is slower)
+    assert len(sol) > 100, "the DUT hardly answered: it hangs?"
+    assert np.array_equal(sol["t_ns"], sol["t_ns"][0] + np.arange(len(sol)) * 10_000_000)
+    assert np.all(sol["rx_ns"] >= sol["t_ns"])
+    assert r.metadata()["dut_output"]["bad_frames"] == "{}"
+    assert len(r.read_columnar("/wire/can/rx")) == len(sol) + len(r.read_columnar("/dut/nav_quality"))
 
 
 @pytest.mark.slow
@@ -225,10 +251,9 @@ def test_s000_end_to_end_in_process_and_as_an_external_process(tmp_path):
 
     inproc = run(spec(tmp_path / "in.mcap", DutSpec("in_process", name="dead_reckoning", config=cfg)))
     with netns.multicast_netns() as ns:
-        cmd = _external_cmd(ns, 43343)
-        ext_spec = spec(tmp_path / "ext.mcap", DutSpec("external", command=cmd, config=cfg),
+        ext_spec = spec(tmp_path / "ext.mcap", _external_dut(ns, 43343, cfg),
                         links=LinkSpec(can={"interface": "udp_multicast", "channel": "239.74.163.43", "port": 43343}),
-                        clock=ClockSpec(step_ns=1_000_000_000))
+                        clock=ClockSpec(step_ns=1_000_000_000, timeout_s=HANG_S))
         ext = netns.call_in(ns, lambda: run(ext_spec))
     assert inproc.ok and ext.ok, ext.reason
     assert inproc.bench_s == ext.bench_s == 3600.0

@@ -25,7 +25,7 @@ CLONE_NEWNET = 0x40000000
 
 def _ip(*args: str, ns: str | None = None) -> subprocess.CompletedProcess:
     cmd = ["ip", "netns", "exec", ns, "ip", *args] if ns else ["ip", *args]
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=10)
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=60)  # a hang guard
 
 
 def unavailable() -> str | None:

@@ -8,7 +8,7 @@ import pytest
 
 from bench.errors import ConfigError, LinkError
 from bench.frames import CanBatch, CanFrame
-from bench.transport.can_link import CanConfig, CanLink, open_can_link, socketcan_unavailable
+from bench.transport.can_link import CanConfig, CanLink, socketcan_unavailable
 from bench.transport.udp import UdpMulticastCanLink
 from tests.transport import netns
 
@@ -40,7 +40,7 @@ def test_virtual_round_trip_keeps_bench_times():
         got = rx.drain()
         assert tx.drain().t_ns.size == 0  # no own frames unless asked
     _same(got, frames)
-    assert tx.stats() == {"sent": len(frames), "received": 0}
+    assert tx.stats() == {"sent": len(frames), "received": 0, "remote": 0, "error_frames": 0}
 
 
 def test_receive_own_messages_and_clock_stamping():
@@ -107,8 +107,9 @@ def test_socketcan_vcan_round_trip():
 
 
 def _udp(ns_name: str, port: int, **kw) -> UdpMulticastCanLink:
+    """A link of the run ``run1`` (two links of one run: the bench and a DUT that tags)."""
     cfg = CanConfig(interface="udp_multicast", channel="239.74.163.2", options={"port": port}, **kw)
-    return netns.call_in(ns_name, lambda: open_can_link(cfg))
+    return netns.call_in(ns_name, lambda: UdpMulticastCanLink(cfg, run_tag="run1"))
 
 
 def test_udp_multicast_sequence_numbers_count_drops(ns):

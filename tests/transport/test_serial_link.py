@@ -17,7 +17,7 @@ from bench.transport.serial_link import PtyLink, PySerialLink, SerialConfig, ope
 
 
 def _read_exactly(port: serial.Serial, n: int) -> bytes:
-    port.timeout = 2.0
+    port.timeout = 60.0  # a hang guard: the read returns as soon as the n bytes are there
     out = b""
     while len(out) < n:
         part = port.read(n - len(out))
@@ -39,7 +39,8 @@ def test_pty_pair_carries_bytes_unchanged_both_ways():
             dut.flush()
             got = b""
             while len(got) < 15:
-                got += link.read(timeout=2.0)
+                got += link.read(timeout=60.0)  # returns at the first byte; 60 s: a hang guard
+                assert got, "nothing came back within 60 s"
             assert got == b"nav\r\n" * 3
             assert link.read(timeout=0.0) == b""
         finally:

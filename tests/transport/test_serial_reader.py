@@ -1,9 +1,20 @@
-"""Draining what the far end writes on a serial link (bench.transport.serial_reader)."""
+"""Draining what the far end writes on a serial link (bench.transport.serial_reader).
+
+A write on a pty slave returns before the bytes are readable at the master (the kernel
+hands them over a moment later), so the tests wait until the reader has read what they
+wrote (a hang guard of 60 s, never a speed bound) or until the bytes are readable
+(``FIONREAD``) before they look.
+"""
 
 from __future__ import annotations
 
+import fcntl
 import os
+import struct
+import termios
 import threading
+import time
+from collections.abc import Callable
 
 from bench.transport.serial_link import SerialConfig, open_serial_link
 from bench.transport.serial_reader import SerialReader
@@ -17,6 +28,19 @@ def _write_all(fd: int, data: bytes) -> None:
         view = view[os.write(fd, view[:4096]) :]
 
 
+def _until(cond: Callable[[], bool], what: str) -> None:
+    """Poll ``cond`` until it holds; a hang guard of 60 s, not a speed bound."""
+    deadline = time.monotonic() + 60.0
+    while not cond():
+        assert time.monotonic() < deadline, f"still waiting after 60 s for {what}"
+        time.sleep(0.001)
+
+
+def _readable(fd: int) -> int:
+    """Bytes waiting to be read on ``fd``."""
+    return struct.unpack("i", fcntl.ioctl(fd, termios.FIONREAD, b"\0\0\0\0"))[0]
+
+
 def test_a_writer_on_the_pty_slave_never_blocks_and_every_byte_is_kept_in_order():
     now = [0]
     with open_serial_link(SerialConfig(port="pty")) as link:
@@ -28,8 +52,10 @@ def test_a_writer_on_the_pty_slave_never_blocks_and_every_byte_is_kept_in_order(
             writer.start()
             writer.join(timeout=60)  # a blocked writer would still be alive here
             assert done.is_set(), "the DUT side blocked: nobody read the pty"
+            _until(lambda: reader.bytes_read == len(PATTERN), "the reader to read the pattern")
             now[0] = 5
             _write_all(fd, b"tail")
+            _until(lambda: reader.bytes_read == len(PATTERN) + 4, "the reader to read the tail")
         finally:
             got = [reader.take(), reader.close()]
             os.close(fd)
@@ -37,7 +63,7 @@ def test_a_writer_on_the_pty_slave_never_blocks_and_every_byte_is_kept_in_order(
     assert data == PATTERN + b"tail"
     assert reader.bytes_read == len(PATTERN) + 4 and reader.error is None
     times = [int(t) for b in got for t in b.t_ns]
-    assert times == sorted(times) and set(times) <= {0, 5}
+    assert times == sorted(times) and set(times) == {0, 5}  # stamped with the clock when read
     assert reader.close().buf.size == 0  # idempotent
 
 
@@ -51,14 +77,38 @@ def test_a_full_reader_waits_for_its_chunks_to_be_taken_and_loses_nothing():
             done = threading.Event()
             writer = threading.Thread(target=lambda: (_write_all(fd, data), done.set()), daemon=True)
             writer.start()
-            while not done.wait(0.005):  # the run takes what was read at every step
+            taken = 0
+            deadline = time.monotonic() + 60.0  # a hang guard: the reader stopped for good
+            while taken < len(data) and time.monotonic() < deadline:  # the run takes what was read at every step
+                done.wait(0.005)
                 batches.append(reader.take())
-            writer.join()
+                taken += batches[-1].buf.size
+            writer.join(timeout=60)
+            assert done.is_set(), "the writer is blocked: the full reader never read on after a take"
         finally:
             batches.append(reader.close())
             os.close(fd)
+    assert batches[-1].buf.size == 0  # everything was taken while the writer wrote
     assert b"".join(b.tobytes() for b in batches) == data
     assert max(b.buf.size for b in batches) <= 4096 + 65536  # the cap and at most one read beyond it
+
+
+def test_close_reads_what_is_still_on_the_line_even_when_the_reader_is_full():
+    data = PATTERN[:5000]
+    with open_serial_link(SerialConfig(port="pty")) as link:
+        fd = os.open(link.dut_port, os.O_WRONLY | os.O_NOCTTY)
+        reader = SerialReader(link, lambda: 0, max_pending=4096)
+        try:
+            _write_all(fd, data[:4500])
+            _until(lambda: reader.pending >= 4096, "the reader to fill up")  # now it waits for a take
+            _write_all(fd, data[4500:])
+            left = len(data) - reader.bytes_read
+            _until(lambda: _readable(link.fileno()) == left, f"{left} bytes readable on the line")
+            got = reader.close()
+        finally:
+            os.close(fd)
+    assert got.tobytes() == data  # the bytes still on the line are read at the close, not dropped
+    assert reader.bytes_read == len(data)
 
 
 def test_an_idle_line_gives_empty_batches_and_closes_at_once():

@@ -32,6 +32,7 @@ DUT = Path(__file__).with_name("external_dut.py")
 EPOCH_UTC = 1_748_736_000 * 10**9
 STEPS = 250  # 2.5 s of bench time in 10 ms lockstep steps
 MS = 1_000_000
+HANG_S = 60.0  # hang guard of every wait for the DUT (start, each step, exit), s; never a speed bound
 
 
 def _traffic():
@@ -83,7 +84,7 @@ def _run(can_link: CanLink, dut_cmd_prefix: list[str], can_args: list[str]) -> N
         ]
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
-            ready, _, _ = select.select([proc.stdout], [], [], 10.0)
+            ready, _, _ = select.select([proc.stdout], [], [], HANG_S)
             assert ready and json.loads(proc.stdout.readline()) == {"ready": True}, proc.stderr.read()
             receiver = NavReceiver()
             enc = CanEncoder()
@@ -102,7 +103,7 @@ def _run(can_link: CanLink, dut_cmd_prefix: list[str], can_args: list[str]) -> N
                 can_link.send_many(can_frames.take(np.arange(sent_can, n_can)))
                 sent_can = n_can
                 can_link.send_many(enc.encode("BENCH_TIME", [T], time_ns=[T], lockstep=1))
-                deadline = time.monotonic() + 5.0
+                deadline = time.monotonic() + HANG_S
                 while True:  # lockstep: wait for DUT_READY >= T
                     out = receiver.feed(can_link.drain(timeout=0.5))
                     solutions.append(out.solutions)
@@ -110,14 +111,15 @@ def _run(can_link: CanLink, dut_cmd_prefix: list[str], can_args: list[str]) -> N
                     if out.ready_ns.size and out.ready_ns.max() >= T:
                         break
                     assert time.monotonic() < deadline and proc.poll() is None, (
-                        f"no DUT_READY({T}) within 5 s: {proc.stderr.read() if proc.poll() is not None else ''}"
+                        f"no DUT_READY({T}) within {HANG_S:g} s: "
+                        f"{proc.stderr.read() if proc.poll() is not None else ''}"
                     )
             can_link.send_many(enc.encode("BENCH_CMD", [STEPS * 10 * MS + 1], command=[3]))
-            stdout, stderr = proc.communicate(timeout=10)
+            stdout, stderr = proc.communicate(timeout=HANG_S)
         finally:
             if proc.poll() is None:
                 proc.terminate()
-                proc.wait(5)
+                proc.wait(HANG_S)
     assert proc.returncode == 0, stderr
     report = json.loads(stdout.strip().splitlines()[-1])
     sol, qual = np.concatenate(solutions), np.concatenate(qualities)
