@@ -109,8 +109,10 @@ def drop_handshake_copies(can: CanBatch) -> CanBatch:
         same = np.all(can.data[at[1:], :6] == first[:6], axis=1) & ((can.data[at[1:], 6] & 0xF0) == (first[6] & 0xF0))
         copies = at[1:][same]
         drop[copies] = True
-        advanced = ~np.all(can.data[copies] == first, axis=1)
-        shifts[cid] = int(advanced.sum())
+        # every copy advanced the counter, or (older recordings) none did; the 16th copy of
+        # a round-advancing start-up is byte for byte the first again, so count them all
+        advanced = bool(np.any(np.any(can.data[copies] != first, axis=1)))
+        shifts[cid] = int(copies.size) if advanced else 0
     kept = can.take(~drop)
     for cid, k in shifts.items():
         rows = np.flatnonzero(kept.can_id == cid)[1:]  # the frames after the kept first one

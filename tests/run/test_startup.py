@@ -63,7 +63,7 @@ def _rounds_recording(rounds: int, *, advanced: bool) -> CanBatch:
     enc = CanEncoder()
     parts = []
     for i in range(rounds):
-        alive = i if advanced else 0
+        alive = i % 16 if advanced else 0
         parts.append(enc.encode("BENCH_EPOCH", [0], epoch_utc_ns=[1_700_000_000 * 10**9], alive=[alive]))
         parts.append(enc.encode("BENCH_TIME", [0], time_ns=[0], lockstep=1, alive=[alive]))
     base = rounds if advanced else 1
@@ -73,9 +73,11 @@ def _rounds_recording(rounds: int, *, advanced: bool) -> CanBatch:
     return CanBatch.concat(parts)
 
 
-@pytest.mark.parametrize("advanced", [True, False], ids=["rounds advance the counter", "older byte-for-byte copies"])
-def test_a_recorded_start_up_is_kept_as_one_round_and_the_counters_after_it_moved_back(advanced):
-    kept = drop_handshake_copies(_rounds_recording(5, advanced=advanced))
+@pytest.mark.parametrize(("rounds", "advanced"), [(5, True), (5, False), (17, True), (33, True), (17, False)],
+                         ids=["rounds advance the counter", "older byte-for-byte copies",
+                              "17 rounds: the 16th copy has the first's bytes", "33 rounds", "17 older copies"])
+def test_a_recorded_start_up_is_kept_as_one_round_and_the_counters_after_it_moved_back(rounds, advanced):
+    kept = drop_handshake_copies(_rounds_recording(rounds, advanced=advanced))
     assert kept.can_id.tolist() == [EPOCH_ID, BENCH_TIME_ID, 0x120, BENCH_TIME_ID, BENCH_TIME_ID]
     values, status = codec("BENCH_TIME").decode(kept.take(np.flatnonzero(kept.can_id == BENCH_TIME_ID)))
     assert values["alive"].tolist() == [0, 1, 2] and np.all(status == 0)
