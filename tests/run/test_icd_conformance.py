@@ -78,7 +78,7 @@ def test_an_icd_dut_in_one_select_loop_sees_every_frame_in_time(ns, tmp_path, st
     assert res.ok, res.reason
     report = _dut_report(res.path)
     assert report["imu_frames"] == 100_000 and report["imu_crc"] == 0 and report["imu_counter_gaps"] == 0
-    assert report["can_crc"] == 0 and report["bench_epoch"] == 101 and report["bench_time"] >= 10_001
+    assert report["can_crc"] == 0 and report["bench_epoch"] >= 101 and report["bench_time"] >= 10_001
     problems = []
     if report["late"]:
         problems.append(f"{report['late']} IMU frames came after their BENCH_TIME (first: {report['first_late']})")
