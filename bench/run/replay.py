@@ -134,7 +134,7 @@ class RecordingReplay(TrafficProvider):
             keep = [w for w in original if w.layer != "wire"]
             first_id = max((w.id for w in keep), default=-1) + 1
             new = [
-                FaultWindow(first_id + i, w.layer, w.target, w.kind, w.start_ns, w.end_ns, w.params)
+                FaultWindow(first_id + i, w.layer, w.target, w.kind, w.start_ns, w.end_ns, w.params, w.origin)
                 for i, w in enumerate(faults)
             ]
             self.windows = keep + new

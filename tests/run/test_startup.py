@@ -33,6 +33,7 @@ from bench.run.startup import EPOCH_ID, advance_alive, drop_handshake_copies
 from bench.run.traffic import BENCH_TIME_ID
 from bench.scenario.loader import load_scenario
 from bench.wire.can import CanEncoder, codec
+from bench.wire.crc import crc8_can
 
 DATA = Path(__file__).parent.parent / "data"
 TABLES = {"imu": {"grade": "navigation", "rate": "200 Hz"}, "doppler": {"model": "seed000"},
@@ -99,6 +100,7 @@ class ThreadDut:
         self.deaf_for = deaf_for
         self.seen: list[tuple[int, int, int]] = []  # (id, alive, time us or -1) of BENCH_EPOCH/TIME, in order
         self.serial_bytes = 0
+        self.bad_crc = 0
         self.stop = threading.Event()
         self.thread = threading.Thread(target=self._loop, daemon=True)
         self.thread.start()
@@ -116,6 +118,9 @@ class ThreadDut:
                 self.deaf_for -= msg.arbitration_id == BENCH_TIME_ID
                 continue
             d = bytes(msg.data)
+            if len(d) != 8 or crc8_can(msg.arbitration_id, d[:7]) != d[7]:
+                self.bad_crc += 1  # ICD 1: a frame with a bad CRC is discarded
+                continue
             t_us = int.from_bytes(d[:6], "little") if msg.arbitration_id == BENCH_TIME_ID else -1
             self.seen.append((msg.arbitration_id, d[6] & 0x0F, t_us))
             if t_us >= 0 and d[6] & 0x10:
@@ -162,14 +167,14 @@ def _recorded_problems(can: CanBatch) -> list[str]:
     return out
 
 
-def _hardware_run(tmp_path: Path, name: str, deaf_for: int, provider=None):
+def _hardware_run(tmp_path: Path, name: str, deaf_for: int, provider=None, schedule: FaultSchedule | None = None):
     channel = f"startup-{uuid.uuid4().hex[:8]}"
     dut = ThreadDut(channel, deaf_for=deaf_for)
     try:
         spec = DutSpec("hardware", startup_timeout_s=5.0)
         if provider is None:
             res = run(RunSpec(scenario=load_scenario(DATA / "short_drive.toml"), tables=TABLES,
-                              schedule=FaultSchedule(), dut=spec, out=tmp_path / name, seed=4,
+                              schedule=schedule or FaultSchedule(), dut=spec, out=tmp_path / name, seed=4,
                               duration_ns=3_000_000_000, window_ns=1_000_000_000, links=dut.links(channel)))
         else:
             res = execute(provider, spec, dut.links(channel), ClockSpec(), tmp_path / name, window_ns=1_000_000_000)
