@@ -10,7 +10,9 @@ traffic into steps at every BENCH_TIME (CAN frames by their order on the bus, IM
 and fix epochs by their time of validity), calls the estimator once per BENCH_TIME with
 the same decoded inputs the in-process adapter gives it, sends its epochs as
 NAV_SOLUTION/NAV_QUALITY frames, and in lockstep answers every BENCH_TIME(T) with
-DUT_READY(T). SIGTERM ends it cleanly. It is the bench's reference external DUT.
+DUT_READY(T). A BENCH_TIME whose time does not advance (the start-up rounds repeat the
+first, each a new transmission) is answered but does not step the estimator again.
+SIGTERM ends it cleanly. It is the bench's reference external DUT.
 
 On udp_multicast it tags its frames with the run tag the bench puts in its environment
 (``BENCH_CAN_RUN_TAG``), so it takes only its own bench's frames even when another run
@@ -71,6 +73,7 @@ class Harness:
         self._gnss = np.zeros(0, GNSS_FIX_DTYPE)
         self.stop = False
         self.steps = 0
+        self.handled_ns = -1  # the latest BENCH_TIME the estimator was stepped to
 
     def close(self) -> None:
         """Close the links and the estimator."""
@@ -146,6 +149,11 @@ class Harness:
         s_rx: list[tuple[int, int]] = []
         q_rx: list[tuple[int, int]] = []
         for k, t in enumerate(times.tolist()):
+            if t <= self.handled_ns:
+                # a BENCH_TIME that does not advance (the start-up rounds repeat the first
+                # one, each a new transmission): nothing new to process; answered below
+                continue
+            self.handled_ns = t
             lo = {n: int(c[k]) for n, c in cuts.items()}
             hi = {n: int(c[k + 1]) for n, c in cuts.items()}
             imu = self._imu[imu_lo : ci[k]]
