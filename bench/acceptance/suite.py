@@ -34,6 +34,7 @@ __all__ = [
     "run_case",
     "run_suite",
     "load_error",
+    "refuse_impossible_faults",
     "crash_reason",
 ]
 
@@ -84,6 +85,15 @@ def prepare_case(case: TestCase, options: SuiteOptions) -> TestCase:
         first = case.run.seeds[0]
         case = case.with_seeds(tuple(range(first, first + options.runs)))
     return case
+
+
+def refuse_impossible_faults(case: TestCase, options: SuiteOptions) -> None:
+    """Refuse (ConfigError, before anything runs) wire faults on the bench's own lockstep
+    frame when the case runs in lockstep (:func:`bench.faults.lockstep.refuse_lockstep_faults`)."""
+    from bench.faults.lockstep import refuse_lockstep_faults
+
+    if (options.clock or case.clock.mode) == "lockstep":
+        refuse_lockstep_faults(case.faults)
 
 
 def load_error(path: Path, exc: Exception) -> CaseResult:
@@ -195,6 +205,7 @@ def run_suite(
     for path in collect_cases(paths):
         try:
             case = load_case(path)
+            refuse_impossible_faults(case, options)
         except ConfigError as exc:
             results.append(load_error(path, exc))
         except OSError as exc:  # a case file that cannot be read is malformed input

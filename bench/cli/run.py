@@ -39,7 +39,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _run(args: argparse.Namespace) -> int:
     from bench.acceptance.case import load_case
-    from bench.acceptance.suite import SuiteOptions, run_case
+    from bench.acceptance.suite import SuiteOptions, refuse_impossible_faults, run_case
     from bench.cli.accept import _Reporter, clear_recordings, exit_code
     from bench.errors import ConfigError
     from bench.paths import reports_dir
@@ -60,6 +60,7 @@ def _run(args: argparse.Namespace) -> int:
         case = dataclasses.replace(case, clock=dataclasses.replace(case.clock, speed=args.speed))
     out = Path(args.out) if args.out else reports_dir() / "runs" / case.id
     options = SuiteOptions(out, tuple(args.seed) if args.seed else None, None, args.clock)
+    refuse_impossible_faults(case, options)
     preflight_folder(out)
     clear_recordings([case], options, args.force)
     started = time.perf_counter()

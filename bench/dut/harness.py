@@ -10,7 +10,9 @@ traffic into steps at every BENCH_TIME (CAN frames by their order on the bus, IM
 and fix epochs by their time of validity), calls the estimator once per BENCH_TIME with
 the same decoded inputs the in-process adapter gives it, sends its epochs as
 NAV_SOLUTION/NAV_QUALITY frames, and in lockstep answers every BENCH_TIME(T) with
-DUT_READY(T). SIGTERM ends it cleanly. It is the bench's reference external DUT.
+DUT_READY(T). A BENCH_TIME whose time does not advance (the start-up rounds repeat the
+first, each a new transmission) is answered but does not step the estimator again.
+SIGTERM ends it cleanly. It is the bench's reference external DUT.
 
 On udp_multicast it tags its frames with the run tag the bench puts in its environment
 (``BENCH_CAN_RUN_TAG``), so it takes only its own bench's frames even when another run
@@ -29,7 +31,6 @@ import json
 import os
 import signal
 import sys
-import time
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -70,9 +71,9 @@ class Harness:
         self._carry = CanBatch.empty()
         self._imu = np.zeros(0, IMU_SAMPLE_DTYPE)
         self._gnss = np.zeros(0, GNSS_FIX_DTYPE)
-        self._imu_period: int | None = None  # learned from the frames' times
         self.stop = False
         self.steps = 0
+        self.handled_ns = -1  # the latest BENCH_TIME the estimator was stepped to
 
     def close(self) -> None:
         """Close the links and the estimator."""
@@ -81,15 +82,15 @@ class Harness:
         self.imu.close()
         self.gnss.close()
 
-    def _read_serial(self, wait: float = 0.0) -> int:
-        """Read and decode what the serial lines hold (waiting up to ``wait`` s for the
-        IMU line); returns the bytes read."""
+    def _read_serial(self) -> int:
+        """Read and decode what the serial lines hold, without waiting; returns the bytes
+        read."""
         from bench.frames import SerialBatch
 
         total = 0
         for link, name in ((self.imu, "imu"), (self.gnss, "gnss")):
             try:
-                data = link.read(wait if name == "imu" else 0.0, 1 << 20)
+                data = link.read(0.0, 1 << 20)
             except (OSError, LinkError) as exc:  # EIO: the bench's end of the pty was closed
                 raise HungUpError(f"the bench hung up the {name} line ({exc})") from exc
             if not data:
@@ -99,38 +100,19 @@ class Harness:
             if name == "imu":
                 new = self.decoder.feed(imu=batch).imu
                 self._imu = np.concatenate([self._imu, new])
-                if self._imu_period is None and len(self._imu) >= 3:
-                    self._imu_period = int(np.median(np.diff(self._imu["t_ns"][-3:])))
             else:
                 self._gnss = np.concatenate([self._gnss, self.decoder.feed(gnss=batch).gnss])
         return total
-
-    def _await_serial(self, t_ns: int, limit_s: float = 0.02) -> None:
-        """Wait (briefly) for IMU frames up to ``t_ns`` still on their way through the pty.
-
-        In lockstep the bench writes every byte due by ``T`` before it sends BENCH_TIME(T),
-        but a pty hands written bytes to its reader a moment later (the kernel pushes them
-        from a work queue), so a BENCH_TIME sent over a socket can overtake them. When the
-        IMU line is active and its newest frame is a whole period or more before ``t_ns``,
-        read on until it arrives, for at most ``limit_s``.
-        """
-        imu = self._imu["t_ns"]
-        if self._imu_period is None or (len(imu) and imu[-1] + self._imu_period > t_ns):
-            return
-        deadline = time.monotonic() + limit_s
-        while time.monotonic() < deadline:
-            self._read_serial(wait=0.0005)
-            imu = self._imu["t_ns"]
-            if len(imu) and imu[-1] + self._imu_period > t_ns:
-                self._read_serial()  # and what the gnss line got meanwhile
-                return
 
     def poll(self, timeout: float = 0.005) -> None:
         """Receive what is pending and handle every BENCH_TIME in it.
 
         The serial lines are read on every call, not only at a BENCH_TIME: in lockstep a
         coarse step puts more bytes on a line than a pty buffers, and the bench's write
-        waits for this side to read them before it sends the step's BENCH_TIME.
+        waits for this side to read them before it sends the step's BENCH_TIME. They are
+        read again once the CAN frames are in, before any BENCH_TIME is handled (ICD 6),
+        and never waited for: the bench makes every byte due by T readable before it sends
+        BENCH_TIME(T).
         """
         serial = self._read_serial()
         got = self.can.drain(timeout=0.0 if serial else timeout)
@@ -148,9 +130,6 @@ class Harness:
         frames = CanBatch(np.arange(len(frames), dtype=np.int64), frames.can_id, frames.data, frames.length, frames.fd)
         self._read_serial()
         decoded = self.decoder.feed(can=frames)
-        bt_times = decoded.can.get("BENCH_TIME", {}).get("time_ns")
-        if bt_times is not None and len(bt_times):
-            self._await_serial(int(bt_times.max()))
         bt = decoded.can.get("BENCH_TIME")
         if bt is None or len(bt["rx_ns"]) == 0:
             return
@@ -170,6 +149,11 @@ class Harness:
         s_rx: list[tuple[int, int]] = []
         q_rx: list[tuple[int, int]] = []
         for k, t in enumerate(times.tolist()):
+            if t <= self.handled_ns:
+                # a BENCH_TIME that does not advance (the start-up rounds repeat the first
+                # one, each a new transmission): nothing new to process; answered below
+                continue
+            self.handled_ns = t
             lo = {n: int(c[k]) for n, c in cuts.items()}
             hi = {n: int(c[k + 1]) for n, c in cuts.items()}
             imu = self._imu[imu_lo : ci[k]]

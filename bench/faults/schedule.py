@@ -111,6 +111,8 @@ class FaultWindow:
     start_ns: int
     end_ns: int
     params: dict[str, Any] = field(default_factory=dict, compare=False, hash=False)
+    #: Where the window was written: (file or None, key such as ``fault[2]``), for errors.
+    origin: tuple[str | None, str] | None = field(default=None, compare=False, hash=False)
 
     def active(self, t_ns: int) -> bool:
         """Whether the window covers bench time ``t_ns`` (start inclusive, end exclusive)."""
@@ -282,6 +284,6 @@ def parse_schedule(tables: Any, *, file: str | None = None, key: str = "fault", 
                 params[name] = ps.default
         _check_events(params, spec, start, end, file, k)
         windows.append(
-            FaultWindow(first_id + i, layer, target, str(kind), round(start * 1e9), round(end * 1e9), params)
+            FaultWindow(first_id + i, layer, target, str(kind), round(start * 1e9), round(end * 1e9), params, (file, k))
         )
     return FaultSchedule(windows)

@@ -44,6 +44,7 @@ from collections.abc import Iterable, Mapping
 
 import numpy as np
 
+from bench.faults.lockstep import LOCKSTEP_TARGET, refuse_lockstep_faults
 from bench.faults.schedule import FaultSchedule, FaultWindow
 from bench.faults.wire_kinds import (
     SERIAL_LINKS,
@@ -70,9 +71,10 @@ __all__ = [
     "SERIAL_LINKS",
     "register_wire_kinds",
     "wire_windows",
+    "LOCKSTEP_TARGET",
+    "refuse_lockstep_faults",
     "WireFaultInjector",
 ]
-
 
 class WireFaultInjector:
     """Applies the wire windows of a schedule to outgoing batches (see the module docstring).
@@ -86,6 +88,9 @@ class WireFaultInjector:
         for each message or stream it acts on.
     serial_links:
         Baud and framing of each serial stream (``baud_mismatch``; default the ICD's).
+    lockstep:
+        The run is in lockstep: windows on ``can:BENCH_TIME`` are refused
+        (:func:`refuse_lockstep_faults`) and ``can:*``/``can`` windows skip BENCH_TIME.
 
     :meth:`can` and :meth:`serial` take the frames due in ``(t0, until_ns]`` in time order
     and return those that go out by ``until_ns`` (delayed ones are held for a later call,
@@ -99,8 +104,12 @@ class WireFaultInjector:
         seed: int = 0,
         *,
         serial_links: Mapping[str, tuple[int, str]] | None = None,
+        lockstep: bool = False,
     ):
         self.windows = wire_windows(schedule)
+        self.lockstep = lockstep
+        if lockstep:
+            refuse_lockstep_faults(self.windows)
         self.seed = seed
         self.serial_links = dict(SERIAL_LINKS if serial_links is None else serial_links)
         self._rngs: dict[tuple[int, str], np.random.Generator] = {}
@@ -122,6 +131,8 @@ class WireFaultInjector:
         return self._rngs[key]
 
     def _applies(self, w: FaultWindow, target: str) -> bool:
+        if self.lockstep and target == LOCKSTEP_TARGET:
+            return False  # the lockstep frame: can:* and can windows leave it alone
         if w.target == target:
             return True
         if target.startswith("can:"):

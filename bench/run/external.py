@@ -4,9 +4,12 @@ The bench opens the CAN bus and the two serial lines (pty pairs by default: the 
 the slave paths in ``{imu_port}`` and ``{gnss_port}``), writes the DUT's configuration to
 a JSON file (``{config}``), starts the command line, and then either
 
-* **lockstep** (ICD 6): per step ``T`` writes the serial bytes due by ``T``, sends the CAN
-  frames due by ``T`` (ending with BENCH_TIME(T), lockstep bit set) and waits for a
-  DUT_READY >= ``T``, recording what the DUT sends meanwhile; or
+* **lockstep** (ICD 6): starts with the first step in rounds until the DUT answers
+  (:mod:`bench.run.startup`), then per step ``T`` writes the serial bytes due by ``T``
+  (readable at the DUT's end before it goes on: :meth:`SerialLink.deliver
+  <bench.transport.serial_link.SerialLink.deliver>`), sends the CAN frames due by ``T``
+  (ending with BENCH_TIME(T), lockstep bit set) and waits for a DUT_READY >= ``T``,
+  recording what the DUT sends meanwhile; or
 * **real time**: emits every frame and byte group at its time on the clock (bytes paced
   at the line's baud), measuring the lateness of every emission, and records what
   arrives with the bench time of its arrival.
@@ -38,7 +41,8 @@ from bench.errors import ConfigError, DutError, LinkError
 from bench.frames import CanBatch, SerialBatch
 from bench.run.realtime_plan import EMIT_CAN, EMIT_IMU, RealtimePlan, plan_emissions
 from bench.run.spec import DutSpec, LinkSpec
-from bench.run.traffic import Traffic
+from bench.run.startup import REPEATED_IDS, advance_alive
+from bench.run.traffic import BENCH_TIME_ID, Traffic
 from bench.textsafe import for_terminal
 from bench.transport.can_link import CanConfig, CanLink, open_can_link
 from bench.transport.serial_link import SerialConfig, SerialLink, open_serial_link
@@ -201,31 +205,54 @@ class ExternalDut:
                     ) from exc
             raise
 
-    def start(self, first: CanBatch, received: Callable[[CanBatch], None], sent: Callable[[CanBatch], None]) -> None:
-        """Wait until the DUT listens.
+    def start(
+        self,
+        first: Traffic | None,
+        received: Callable[[CanBatch], None],
+        sent: Callable[[Traffic], None] | None = None,
+    ) -> int:
+        """Wait until the DUT listens; returns the start-up rounds sent (lockstep).
 
-        Lockstep: send ``first`` (the run's own first BENCH_TIME frame, byte for byte, so
-        the traffic after it is the same whatever the start-up took) every 100 ms until the
-        DUT answers it with DUT_READY, within the start-up timeout. Real time: the process is still
-        alive after a short settling time.
+        Lockstep (:mod:`bench.run.startup`): the first step's serial bytes and one-time CAN
+        frames once, then rounds of its BENCH_EPOCH and BENCH_TIME, each round with the
+        counters advanced, every 100 ms until the DUT answers with DUT_READY, within the
+        start-up timeout; ``sent`` records each part as it goes out. Real time (``first``
+        None): the process is still alive after a short settling time.
         """
         deadline = time.monotonic() + self.spec.startup_timeout_s
-        t_first = int(first.t_ns[0]) if len(first) else 0
-        if not self.lockstep:
+        if not self.lockstep or first is None:
             time.sleep(min(0.5, self.spec.startup_timeout_s))
             self._check_process("during start-up")
-            return
+            return 0
         assert self.can is not None
+        can = first.can
+        bt = np.flatnonzero(can.can_id == BENCH_TIME_ID)
+        t_first = int(can.t_ns[bt[-1]]) if bt.size else 0
+        again = np.isin(can.can_id, REPEATED_IDS)
+        once = Traffic(can.take(np.flatnonzero(~again)), first.imu, first.gnss, first.events)
+        each_round = can.take(np.flatnonzero(again))  # BENCH_TIME last (traffic order)
+        with self._dut_side():
+            for name, batch in (("imu", once.imu), ("gnss", once.gnss)):
+                if len(batch):
+                    self.serial[name].write(batch.tobytes())
+                    self.serial[name].deliver()
+            self.can.send_many(once.can)
+        if sent is not None:
+            sent(once)
+        rounds = 0
         while True:
             self._check_process(f"during start-up, before answering BENCH_TIME({t_first / 1e9:g} s)")
-            self.can.send_many(first)
-            sent(first)
+            frames = advance_alive(each_round, REPEATED_IDS, rounds)
+            self.can.send_many(frames)
+            rounds += 1
+            if sent is not None:
+                sent(Traffic(frames, SerialBatch.empty(), SerialBatch.empty(), first.events[:0]))
             got = self.can.drain(timeout=0.1)
             if len(got):
                 received(got)
                 if self._ready_at_least(got, t_first):
                     self._flush_lines()
-                    return
+                    return rounds
             if time.monotonic() > deadline:
                 self._flush_lines()
                 raise DutError(
@@ -263,8 +290,10 @@ class ExternalDut:
                 self.now_ns = t
                 if i_cut[k] > i0:
                     self.serial["imu"].write(imu.buf[imu.offsets[i0] : imu.offsets[i_cut[k]]].tobytes())
+                    self.serial["imu"].deliver()  # readable by the DUT before BENCH_TIME(T) (ICD 6)
                 if g_cut[k] > g0:
                     self.serial["gnss"].write(gnss.buf[gnss.offsets[g0] : gnss.offsets[g_cut[k]]].tobytes())
+                    self.serial["gnss"].deliver()
                 if c_cut[k] > c0:
                     self.can.send_many(can.take(np.arange(c0, c_cut[k])))
                 c0, i0, g0 = c_cut[k], i_cut[k], g_cut[k]
@@ -273,7 +302,7 @@ class ExternalDut:
 
     def _await_ready(self, t_ns: int, timeout_s: float, flood: int, received: Callable[[CanBatch], None]) -> None:
         assert self.can is not None
-        if self.ready_ns >= t_ns:  # answered already (the start-up handshake's BENCH_TIME(0))
+        if self.ready_ns >= t_ns:  # answered already
             return
         deadline = time.monotonic() + timeout_s
         n0, odd0 = self.can.peer_frames, self.can.remote + self.can.error_frames  # every frame counts

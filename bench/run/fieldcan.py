@@ -11,8 +11,8 @@ Used by :class:`~bench.run.logreplay.LogReplay`; the rules are in docs/run_engin
   the log of log time minus BENCH_TIME payload; otherwise the first kept frame goes out at
   bench time ``offset`` (default 0) and the rest keep their spacing. Frames before bench
   time zero are left out;
-* the start-up handshake of a bench run repeats its first BENCH_TIME byte for byte; one
-  copy is kept.
+* the start-up of a bench run repeats its first step's BENCH_EPOCH and BENCH_TIME; one
+  round is kept and the counters after it continue from there.
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ import numpy as np
 from bench.config.files import LOG_LIMIT, regular_file
 from bench.errors import ConfigError
 from bench.frames import CanBatch
+from bench.run.startup import drop_handshake_copies
 from bench.run.traffic import BENCH_TIME_ID
 from bench.transport.canlog import read_can_log_file
 from bench.wire.can import codec
@@ -164,14 +165,9 @@ def place_can_log(
 
 
 def drop_handshake_copy(can: CanBatch) -> CanBatch:
-    """A bench run's export repeats its first BENCH_TIME for the start-up handshake: keep one."""
-    bt = np.flatnonzero(can.can_id == BENCH_TIME_ID)
-    if bt.size < 2:
-        return can
-    same = (can.t_ns[bt[1:]] == can.t_ns[bt[0]]) & np.all(can.data[bt[1:]] == can.data[bt[0]], axis=1)
-    drop = np.zeros(len(can), bool)
-    drop[bt[1:][same]] = True
-    return can.take(~drop)
+    """A bench run's export repeats its first step for the start-up: keep one round
+    (:func:`bench.run.startup.drop_handshake_copies`)."""
+    return drop_handshake_copies(can)
 
 
 def with_lockstep_bit(can: CanBatch, lockstep: bool) -> tuple[CanBatch, int]:

@@ -141,7 +141,9 @@ class LogReplay(TrafficProvider):
                 "re-emits logged frames and can only add wire faults",
                 key="fault",
             )
-        self.injector = WireFaultInjector(FaultSchedule(self.windows), seed) if self.windows else None
+        self.injector = (
+            WireFaultInjector(FaultSchedule(self.windows), seed, lockstep=lockstep) if self.windows else None
+        )
         can, logged_epochs = self._can() if logs.can else (CanBatch.empty(), np.zeros(0, np.int64))
         imu = self._imu() if logs.imu else SerialBatch.empty()
         nmea = read_nmea_log(_read_bytes(logs.gnss, "NMEA byte log"), file=str(logs.gnss)) if logs.gnss else None

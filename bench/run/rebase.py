@@ -102,4 +102,4 @@ def rebase_window(w: FaultWindow, s_ns: int) -> FaultWindow | None:
     """A fault window moved and cut at zero (None if it ended before the seek point)."""
     if w.end_ns <= s_ns:
         return None
-    return FaultWindow(w.id, w.layer, w.target, w.kind, max(w.start_ns - s_ns, 0), w.end_ns - s_ns, w.params)
+    return FaultWindow(w.id, w.layer, w.target, w.kind, max(w.start_ns - s_ns, 0), w.end_ns - s_ns, w.params, w.origin)

@@ -2,7 +2,8 @@
 
 :class:`RecordingReplay` takes a bench recording. Without a new fault schedule it
 re-emits the recorded frames and bytes as they went out, frame for frame (BENCH_TIME
-frames are rebuilt only when the clock mode changes the lockstep bit). With a new
+frames are rebuilt only when the clock mode changes the lockstep bit; of the source's
+start-up one round is kept, and the counters after it continue from there). With a new
 schedule it re-encodes the recorded sensor samples (after the original sensor faults,
 which live in the samples) and applies the new wire faults instead of the old ones. The
 recorded truth, samples, segments and fault windows are copied into the new recording,
@@ -39,7 +40,8 @@ from bench.run.fieldcan import with_lockstep_bit
 from bench.run.provider import COMMANDS_TOPIC, TrafficProvider
 from bench.run.rebase import rebase_can, rebase_records, rebase_segments, rebase_serial, rebase_window
 from bench.run.source import SEGMENTS_TOPIC
-from bench.run.traffic import BENCH_TIME_ID, Traffic, TrafficEncoder, _ordered, slice_window
+from bench.run.startup import drop_handshake_copies
+from bench.run.traffic import Traffic, TrafficEncoder, _ordered, slice_window
 
 __all__ = ["RecordingReplay"]
 
@@ -132,7 +134,7 @@ class RecordingReplay(TrafficProvider):
             keep = [w for w in original if w.layer != "wire"]
             first_id = max((w.id for w in keep), default=-1) + 1
             new = [
-                FaultWindow(first_id + i, w.layer, w.target, w.kind, w.start_ns, w.end_ns, w.params)
+                FaultWindow(first_id + i, w.layer, w.target, w.kind, w.start_ns, w.end_ns, w.params, w.origin)
                 for i, w in enumerate(faults)
             ]
             self.windows = keep + new
@@ -179,16 +181,9 @@ class RecordingReplay(TrafficProvider):
     def _recorded_traffic(self) -> tuple[CanBatch, SerialBatch, SerialBatch]:
         can = read_can(self.reader, CAN_TX)
         can = can.take(np.argsort(can.t_ns, kind="stable"))
-        # the start-up handshake repeats the first BENCH_TIME byte for byte: keep one copy
-        if len(can):
-            same = np.zeros(len(can), bool)
-            bt = np.flatnonzero(can.can_id == BENCH_TIME_ID)
-            if bt.size > 1:
-                first = can.data[bt[0]]
-                dup = bt[1:][(can.t_ns[bt[1:]] == can.t_ns[bt[0]]) & np.all(can.data[bt[1:]] == first, axis=1)]
-                same[dup] = True
-            can = can.take(~same)
-        can = _ordered(can)
+        # one round of the source's start-up, the counters after it moved back: this
+        # replay's own start-up continues them (bench.run.startup)
+        can = _ordered(drop_handshake_copies(can))
         if not self.lockstep or self.run_start.get("clock") != "lockstep":
             can = self._rebuild_bench_time(can)
         s = self.seek_ns

@@ -89,7 +89,8 @@ class TrafficEncoder:
     epoch_ns:
         UTC of bench time zero (BENCH_EPOCH, NMEA time fields).
     lockstep:
-        Set the lockstep bit of BENCH_TIME.
+        Set the lockstep bit of BENCH_TIME; wire faults then leave BENCH_TIME alone, and a
+        fault aimed at it is refused (:func:`bench.faults.lockstep.refuse_lockstep_faults`).
     schedule, seed:
         The run's fault schedule and seed (wire-layer windows are applied).
     commands:
@@ -122,7 +123,7 @@ class TrafficEncoder:
         self.epoch_period_ns = epoch_period_ns
         self.commands = sorted((int(t), int(c)) for t, c in commands)
         self.encoder = CanEncoder()
-        self.injector = WireFaultInjector(schedule, seed)
+        self.injector = WireFaultInjector(schedule, seed, lockstep=lockstep)
         self._faulty = any(w.layer == "wire" for w in schedule)
         self._imu_counter = 0
         self._held_gnss = SerialBatch.empty()

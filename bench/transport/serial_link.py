@@ -12,15 +12,32 @@
 :meth:`SerialLink.write_many` writes a whole batch in one call (one system call for a
 pty: about 40 us per call, so never one frame at a time on hot paths). A pty delivers
 bytes at once whatever the baud; real-time pacing is :mod:`bench.transport.pacing`.
+
+:meth:`SerialLink.deliver` makes what was written readable at the far end before the
+bench goes on (lockstep: before BENCH_TIME(T), ICD 6). A write to a pty master only
+queues the bytes: the tty layer moves them into the slave's line discipline from a work
+item a moment later, and until then the slave's ``FIONREAD`` (pyserial's
+``in_waiting``) does not count them, so a CAN frame sent meanwhile can overtake them.
+``poll`` on a slave that has nothing readable runs that work at once (the kernel's
+``n_tty_poll`` flushes the buffer work), and the bench keeps a slave descriptor of its
+own, so :class:`PtyLink` polls it: every byte written is then readable by the DUT, up to
+the line discipline's buffer (4095 bytes, measured when the pair is made); a step with
+more waits, polling again, until the DUT has read enough for the rest to move in. This
+holds when the DUT had read what it was given before (ICD 6: all pending input before
+each BENCH_TIME): a poll of a slave that still holds bytes does not run the work. A real
+port (:class:`PySerialLink`) waits until its output is transmitted (``flush``:
+``tcdrain``).
 """
 
 from __future__ import annotations
 
 import contextlib
 import errno
+import fcntl
 import os
 import queue
 import select
+import struct
 import termios
 import time
 import tty
@@ -37,6 +54,13 @@ from bench.frames import SerialBatch, SerialChunk
 from bench.transport.pacing import parse_framing
 
 __all__ = ["SerialConfig", "SerialLink", "PtyPair", "PtyLink", "PySerialLink", "open_serial_link"]
+
+#: A delivery's wait between two polls while the DUT reads or the kernel's work moves
+#: bytes in (that work may be preempted for a scheduler slice on a busy machine).
+_SETTLE_S = 0.0002
+#: A line whose readable count has not changed for this long is taken as delivered: the
+#: DUT left bytes unread, and nothing more can move in until it reads.
+_STILL_S = 0.01
 
 _BAUD_CONSTANTS = {
     b: getattr(termios, f"B{b}")
@@ -123,6 +147,16 @@ class SerialLink:
         self.write(data)
         return len(data)
 
+    def deliver(self) -> None:
+        """Return once every byte written so far is readable at the far end (or, on a
+        real line, transmitted); see the module docstring."""
+        if self._closed:
+            raise LinkError(f"{self!r} is closed")
+        self._deliver()
+
+    def _deliver(self) -> None:
+        """Subclasses: make the written bytes readable at the far end."""
+
     def read(self, timeout: float | None = 0.0, max_bytes: int = 1 << 16) -> bytes:
         """What is available, waiting up to ``timeout`` s for the first byte (b"" if none)."""
         if self._closed:
@@ -181,10 +215,47 @@ class PtyPair:
             termios.tcsetattr(self.slave_fd, termios.TCSANOW, attrs)
             os.set_blocking(self.master_fd, False)
             self.slave_path = os.ttyname(self.slave_fd)
+            #: bytes the slave's line discipline holds readable at most (4095 on Linux)
+            self.ldisc_capacity = self._measure_capacity()
         except OSError:
             self.close()
             raise
         self._closed = False
+
+    def settle(self) -> None:
+        """Run the tty layer's pending work now: a poll of a slave with nothing readable
+        moves what the master wrote into its line discipline (see the module docstring)."""
+        poller = select.poll()
+        poller.register(self.slave_fd, select.POLLIN)
+        poller.poll(0)
+
+    def readable(self) -> int:
+        """Bytes the slave's line discipline holds readable (``FIONREAD``, the DUT's
+        ``in_waiting``)."""
+        return struct.unpack("i", fcntl.ioctl(self.slave_fd, termios.FIONREAD, b"\0\0\0\0"))[0]
+
+    def _measure_capacity(self) -> int:
+        """Fill the line discipline once, before the DUT opens the slave: what it holds
+        once the tty layer's work has stopped moving bytes in; then empty it again."""
+        os.set_blocking(self.slave_fd, False)
+        try:
+            with contextlib.suppress(BlockingIOError):
+                os.write(self.master_fd, bytes(16384))
+            capacity, still = -1, 0
+            for _ in range(100):  # the work may be preempted between its buffers: until steady
+                self.settle()
+                held = self.readable()
+                still = still + 1 if held == capacity else 0
+                capacity = held
+                if still >= 3:
+                    break
+                time.sleep(_SETTLE_S)
+            with contextlib.suppress(BlockingIOError):
+                while os.read(self.slave_fd, 65536):  # EAGAIN only once the pending work ran
+                    pass
+        finally:
+            os.set_blocking(self.slave_fd, True)
+        return max(capacity, 1)
 
     def close(self) -> None:
         """Close both ends (safe to call twice)."""
@@ -214,6 +285,7 @@ class PtyLink(SerialLink):
             self._closed = True
             raise LinkError(f"cannot create a pty pair: {exc}") from exc
         self.dut_port = self.pair.slave_path
+        self._undelivered = 0
 
     def fileno(self) -> int | None:
         return None if self._closed else self.pair.master_fd
@@ -225,6 +297,7 @@ class PtyLink(SerialLink):
             try:
                 n = os.write(self.pair.master_fd, view)
                 view = view[n:]
+                self._undelivered += n
                 continue
             except BlockingIOError:
                 pass
@@ -236,6 +309,37 @@ class PtyLink(SerialLink):
                     f"{self!r}: the DUT on {self.dut_port} took no bytes for {timeout:g} s "
                     f"({len(view)} of {len(data)} bytes left)"
                 )
+
+    def _deliver(self) -> None:
+        # See the module docstring. ``written``: bytes written since the last delivery.
+        pair, timeout = self.pair, self.config.write_timeout
+        written, self._undelivered = self._undelivered, 0
+        deadline = time.monotonic() + timeout
+        last, since = -1, time.monotonic()
+        while True:
+            pair.settle()
+            held = pair.readable()
+            if held == 0:
+                # that poll found nothing readable, so it ran the pending work; once more,
+                # in case the DUT emptied the buffer between the poll and the count
+                pair.settle()
+                held = pair.readable()
+                if held == 0:
+                    return  # nothing waits in the tty layer: the DUT has read it all
+            elif held >= written and held < pair.ldisc_capacity:
+                return  # everything written is readable (the DUT has read none of it yet)
+            now = time.monotonic()
+            if held >= pair.ldisc_capacity:  # full: the rest moves in as the DUT reads
+                if now > deadline:
+                    raise LinkError(
+                        f"{self!r}: the DUT on {self.dut_port} took no bytes for {timeout:g} s "
+                        f"({held} bytes readable, more waiting to move in)"
+                    )
+            elif held != last:
+                last, since = held, now  # the DUT reads, or the kernel is still moving bytes in
+            elif now - since > _STILL_S:
+                return  # nothing moved for a while: the DUT left bytes unread (ICD 6 asks it not to)
+            time.sleep(_SETTLE_S)
 
     def _read(self, timeout: float | None, max_bytes: int) -> bytes:
         fd = self.pair.master_fd
@@ -287,6 +391,12 @@ class PySerialLink(SerialLink):
             raise LinkError(f"{self!r}: the far end took no bytes for {timeout:g} s") from exc
         except serial.SerialException as exc:
             raise LinkError(f"{self!r}: write failed: {exc}") from exc
+
+    def _deliver(self) -> None:
+        try:
+            self.port.flush()  # tcdrain on a real port: the bytes are on the wire
+        except (serial.SerialException, OSError) as exc:
+            raise LinkError(f"{self!r}: waiting for the output to be transmitted failed: {exc}") from exc
 
     def _read(self, timeout: float | None, max_bytes: int) -> bytes:
         try:

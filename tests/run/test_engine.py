@@ -20,9 +20,11 @@ import pytest
 from bench.clock.pacing import TimingBudget, TimingLog
 from bench.faults.schedule import FaultSchedule, parse_schedule
 from bench.record.mcap_io import RecordingReader
+from bench.record.wire_topics import CAN_TX_DTYPE, can_batch, can_records
 from bench.run.engine import execute, run
 from bench.run.replay import RecordingReplay
 from bench.run.spec import ClockSpec, DutSpec, LinkSpec, RunSpec
+from bench.run.startup import drop_handshake_copies
 from bench.run.traffic import BENCH_TIME_ID
 from bench.scenario.loader import load_scenario
 from bench.sensors.suite import load_fault_kinds
@@ -49,9 +51,10 @@ def _spec(out: Path, *, seed: int = 1, dut: DutSpec | None = None, clock: ClockS
 
 
 def _sensor_traffic(path: Path) -> dict[str, object]:
-    """What the bench sent, without BENCH_TIME (whose start-up copies depend on the DUT)."""
+    """What the bench sent, without BENCH_TIME, one round of an external DUT's start-up
+    kept (how many rounds it took depends on the DUT)."""
     r = RecordingReader(path)
-    can = r.read_columnar("/wire/can/tx")
+    can = can_records(drop_handshake_copies(can_batch(r.read_columnar("/wire/can/tx"))), CAN_TX_DTYPE)
     return {"can": can[can["can_id"] != BENCH_TIME_ID], "imu": r.read_chunks("/wire/imu/tx"),
             "gnss": r.read_chunks("/wire/gnss/tx")}
 

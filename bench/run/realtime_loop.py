@@ -1,0 +1,82 @@
+"""The real-time loop of a run: every window prepared (and its samples recorded) before
+the clock starts, then every emission at its time on the clock, the DUT's frames
+received as they come, the lateness of each emission measured, and the run's budget
+checked at the end.
+
+The emission loop does nothing but wait and send; the DUT's frames are decoded and
+recorded when there is slack, and at the end.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bench.clock import realtime_priority
+from bench.clock.pacing import TimingLog
+from bench.run.result import TimingBudgetError
+from bench.run.session import RunSession
+from bench.run.traffic import Traffic
+
+__all__ = ["run_realtime", "steps_of"]
+
+
+def run_realtime(s: RunSession) -> None:
+    """Run every window of ``s`` in real time, then check the timing budget."""
+    out = s.out
+    assert out is not None
+    plans = []
+    for t0, t1 in s.windows:
+        traffic, step_times = s.prepare(t0, t1)
+        if s.dut_ext is not None:
+            plans.append((t0, t1, s.dut_ext.plan_realtime(traffic), step_times))
+        else:
+            plans.append((t0, t1, steps_of(traffic, step_times), step_times))
+    if s.dut_ext is not None:
+        s.dut_ext.start(None, out.feed)
+    out.deferred = True
+    idle = lambda slack: out.process(4)  # noqa: E731 - a few batches per slack moment
+    s.rec.metadata("realtime_scheduling", realtime_priority.acquire())
+    clock, timing = s.clock, s.timing
+    clock.start(s.start_ns)
+    for t0, t1, plan, step_times in plans:
+        if s.dut_ext is not None:
+            s.dut_ext.exchange_realtime(plan, clock, timing, t1, out.feed, idle)
+        else:
+            assert s.dut_in is not None
+            for k, part in enumerate(plan):
+                t = int(step_times[k])
+                timing.add(t, clock.wait_until(t))
+                lo = int(step_times[k - 1]) + 1 if k else t0
+                out.feed(s.dut_in.exchange(part, step_times[k : k + 1], lo))
+        s.report(t1)
+    realtime_priority.release()
+    out.deferred = False
+    out.process()
+    s.write_timing()
+    budget = s.clock_spec.budget
+    if budget is not None:
+        summary = TimingLog.summarize(np.concatenate(s.lateness) if s.lateness else np.zeros(0, np.int64))
+        if not summary.within(budget):
+            raise TimingBudgetError(
+                f"real-time budget missed: {summary.text()} (budget p99 {budget.p99_ns / 1e3:g} us, "
+                f"max {budget.max_ns / 1e3:g} us)"
+            )
+
+
+def steps_of(traffic: Traffic, step_times: np.ndarray) -> list[Traffic]:
+    """The traffic of each step of a window (real-time in-process runs)."""
+    cuts = [np.searchsorted(b.t_ns, step_times, side="right") for b in (traffic.can, traffic.imu, traffic.gnss)]
+    out = []
+    lo = [0, 0, 0]
+    for k in range(len(step_times)):
+        hi = [int(c[k]) for c in cuts]
+        out.append(
+            Traffic(
+                traffic.can.take(np.arange(lo[0], hi[0])),
+                traffic.imu.take(np.arange(lo[1], hi[1])),
+                traffic.gnss.take(np.arange(lo[2], hi[2])),
+                traffic.events[:0],
+            )
+        )
+        lo = hi
+    return out
