@@ -11,17 +11,20 @@ a JSON file (``{config}``), starts the command line, and then either
   (ending with BENCH_TIME(T), lockstep bit set) and waits for a DUT_READY >= ``T``,
   recording what the DUT sends meanwhile; or
 * **real time**: emits every frame and byte group at its time on the clock (bytes paced
-  at the line's baud), measuring the lateness of every emission, and records what
-  arrives with the bench time of its arrival.
+  at the line's baud), measuring the lateness of every emission, while a receive thread
+  (:class:`~bench.transport.can_link.CanReceiveThread`) stamps every DUT frame with the
+  bench time of its arrival as it arrives; the emission loop only waits and sends (no
+  decoding, no recording). After the last emission the bench keeps receiving until the
+  DUT's answer to the end of the run has come (a NAV_SOLUTION whose time of validity is
+  the run's end, at most :data:`LINGER_S`), then records everything received.
 
 A DUT that dies, does not answer, never starts, stops reading its serial lines, or
 floods the bus ends the run with a :class:`~bench.errors.DutError` naming what happened
 (with its exit status and last output lines when it died); shutdown always ends the
 whole process group. The DUT's standard output and error are recorded as they come
-(lockstep: after each step; real time: at the end of each window), and so are the bytes
+(lockstep: after each step; real time: after the last emission), and so are the bytes
 it writes on its serial lines, drained by a thread per line so that it never blocks
-(recorded after each step, in real time in the slack between emissions and at the end of
-each window, and at shutdown).
+(recorded after each step, in real time after the last emission, and at shutdown).
 """
 
 from __future__ import annotations
@@ -44,15 +47,19 @@ from bench.run.spec import DutSpec, LinkSpec
 from bench.run.startup import REPEATED_IDS, advance_alive
 from bench.run.traffic import BENCH_TIME_ID, Traffic
 from bench.textsafe import for_terminal
-from bench.transport.can_link import CanConfig, CanLink, open_can_link
+from bench.transport.can_link import CanConfig, CanLink, CanReceiveThread, open_can_link
 from bench.transport.serial_link import SerialConfig, SerialLink, open_serial_link
 from bench.transport.serial_reader import SerialReader
 from bench.transport.udp import RUN_TAG_ENV, UdpMulticastCanLink
 from bench.wire.can import codec
 
-__all__ = ["ExternalDut", "RealtimePlan", "serial_config", "can_config"]
+__all__ = ["ExternalDut", "RealtimePlan", "serial_config", "can_config", "LINGER_S"]
 
 _READY = codec("DUT_READY")
+_SOLUTION = codec("NAV_SOLUTION")
+#: Real time: how long (wall seconds) the bench waits after its last emission for the
+#: DUT's answer to the end of the run.
+LINGER_S = 2.0
 
 
 def serial_config(table: dict, key: str, default_baud: int) -> SerialConfig:
@@ -105,7 +112,10 @@ class ExternalDut:
         self.on_lines = on_lines
         self.on_serial = on_serial
         self.readers: dict[str, SerialReader] = {}
-        self.now_ns = 0  # bench time stamped on received frames
+        self.now_ns = 0  # bench time stamped on received frames (lockstep)
+        self._rt_clock: Clock | None = None  # real time: the run's clock stamps them
+        self._rx: CanReceiveThread | None = None
+        self._rx_to: Callable[[CanBatch], None] | None = None
         self.ready_ns = -1  # latest DUT_READY time received
         self.process: DutProcess | None = None
         self._recent: list[LogLine] = []  # the last output lines, for error messages
@@ -116,16 +126,21 @@ class ExternalDut:
         self.gnss_baud = int(links.gnss.get("baud", 115_200))
         try:
             free = spec.kind == "external" and uses_placeholder(spec.command, "can_port")
-            self.can = open_can_link(can_config(links.can, free_port=free), clock=lambda: self.now_ns)
+            self.can = open_can_link(can_config(links.can, free_port=free), clock=self._bench_now)
             self.serial["imu"] = open_serial_link(serial_config(links.imu, "imu", 460_800))
             self.serial["gnss"] = open_serial_link(serial_config(links.gnss, "gnss", 115_200))
             for name, link in self.serial.items():
-                self.readers[name] = SerialReader(link, lambda: self.now_ns, name=name)
+                self.readers[name] = SerialReader(link, self._bench_now, name=name)
             if spec.kind == "external":
                 self._start()
         except BaseException:
             self.close()
             raise
+
+    def _bench_now(self) -> int:
+        """Bench time now: the run's clock in real time, the step reached in lockstep."""
+        clock = self._rt_clock
+        return clock.now_ns() if clock is not None else self.now_ns
 
     # ------------------------------------------------------------------ process
     def _start(self) -> None:
@@ -338,42 +353,38 @@ class ExternalDut:
         """Prepare one window's emissions before the clock starts (real time)."""
         return plan_emissions(traffic, self.imu_baud, self.gnss_baud)
 
-    def exchange_realtime(
-        self,
-        plan: RealtimePlan,
-        clock: Clock,
-        timing: TimingLog,
-        end_ns: int,
-        received: Callable[[CanBatch], None],
-        idle: Callable[[int], None] | None = None,
-    ) -> None:
-        """Emit one window's traffic on the clock, receiving as it goes; ``idle(slack_ns)``
-        is called when the next emission is far enough away to do other work."""
+    def begin_realtime(self, clock: Clock, received: Callable[[CanBatch], None]) -> None:
+        """The clock has started: from now on every frame the DUT sends is stamped with the
+        bench time it arrives at, by a thread, and handed to ``received`` after the last
+        emission (:meth:`end_realtime`), or at :meth:`close` if the run stopped before."""
+        assert self.can is not None
+        self._rt_clock = clock
+        self._rx_to = received
+        self._rx = CanReceiveThread(self.can)
+
+    def exchange_realtime(self, plan: RealtimePlan, clock: Clock, timing: TimingLog, end_ns: int) -> None:
+        """Emit one window's traffic on the clock (after :meth:`begin_realtime`): wait,
+        send, measure the lateness; nothing else but a flood check per emission and a look
+        at the DUT process every 100 ms of bench time."""
         flood = int(self.spec.flood_frames_per_s * max(1e-9 * (end_ns - self.now_ns), 0.01)) + 100
         with self._dut_side():
-            self._emit(plan, clock, timing, end_ns, received, idle, flood)
+            self._emit(plan, clock, timing, flood)
+        self.now_ns = end_ns
 
-    def _emit(
-        self,
-        plan: RealtimePlan,
-        clock: Clock,
-        timing: TimingLog,
-        end_ns: int,
-        received: Callable[[CanBatch], None],
-        idle: Callable[[int], None] | None,
-        flood: int,
-    ) -> None:
-        assert self.can is not None
-        send_can, write_imu, write_gnss = self.can.send, self.serial["imu"].write, self.serial["gnss"].write
-        n0, odd0 = self.can.peer_frames, self.can.remote + self.can.error_frames  # every frame counts
+    def _emit(self, plan: RealtimePlan, clock: Clock, timing: TimingLog, flood: int) -> None:
+        assert self.can is not None and self._rx is not None
+        can, rx = self.can, self._rx
+        send_can, write_imu, write_gnss = can.send, self.serial["imu"].write, self.serial["gnss"].write
+        n0, odd0 = can.peer_frames, can.remote + can.error_frames  # every frame counts
         k = 0
         next_check = self.now_ns  # the DUT process is checked every 100 ms of bench time
         times, kinds, index = plan.times, plan.kinds, plan.index
         on_can, on_imu = EMIT_CAN, EMIT_IMU  # locals: no global lookups per emission
+        wait_until, add = clock.wait_until, timing.add
         n = len(times)
         while k < n:
             t = times[k]
-            timing.add(t, clock.wait_until(t))
+            add(t, wait_until(t))
             while k < n and times[k] == t:
                 kind, i = kinds[k], index[k]
                 if kind == on_can:
@@ -383,37 +394,63 @@ class ExternalDut:
                 else:
                     write_gnss(plan.gnss[i])
                 k += 1
-            self.now_ns = clock.now_ns()
-            got = self.can.drain(timeout=0.0)
-            if len(got):
-                received(got)
-            if self.can.peer_frames - n0 > flood:
+            if can.peer_frames - n0 > flood or rx.full:
+                self.now_ns = t
                 self._flush_lines()
                 raise DutError(
-                    f"the DUT floods the bus: {self.can.peer_frames - n0} frames{self._odd_frames(odd0)} "
+                    f"the DUT floods the bus: {can.peer_frames - n0} frames{self._odd_frames(odd0)} "
                     f"in one window (limit {flood})"
                 )
-            if idle is not None and k < n:
-                slack = times[k] - clock.now_ns()
-                if slack > 5_000_000:
-                    self._flush_serial()
-                    idle(slack)
-            if self.now_ns >= next_check:  # a few microseconds every 100 ms, late or not
-                next_check = self.now_ns + 100_000_000
+            if t >= next_check:  # a few microseconds every 100 ms, late or not
+                next_check = t + 100_000_000
+                self.now_ns = t
                 self._check_process()
-        clock.wait_until(end_ns)
-        self.now_ns = clock.now_ns()
-        got = self.can.drain(timeout=0.0)
-        if len(got):
-            received(got)
+                if rx.error is not None:
+                    raise LinkError(f"receiving from the DUT failed: {rx.error}") from rx.error
+
+    def end_realtime(self, end_ns: int, linger_s: float = LINGER_S) -> None:
+        """After the last emission: receive until the DUT's answer to ``end_ns`` (a
+        NAV_SOLUTION valid at ``end_ns`` or later) has come, at most ``linger_s`` wall
+        seconds, then stop the receive thread and hand over everything it received."""
+        assert self._rx is not None
+        deadline = time.monotonic() + linger_s
+        got: list[CanBatch] = []
+        while True:
+            batch = self._rx.take()
+            if len(batch):
+                got.append(batch)
+                sel = np.flatnonzero(batch.can_id == _SOLUTION.frame_id)
+                if sel.size:
+                    values, status = _SOLUTION.decode(batch.take(sel))
+                    if np.any(values["t_ns"][status == 0] >= end_ns):
+                        break
+            if time.monotonic() >= deadline or self._rx.error is not None:
+                break
+            self._check_process()
+            time.sleep(0.005)
+        self.now_ns = end_ns
+        self._stop_receiving(got)
         self._check_process()
         self._flush_lines()
+
+    def _stop_receiving(self, got: list[CanBatch] | None = None, *, check: bool = True) -> None:
+        """Stop the real-time receive thread and hand over what it received (idempotent);
+        ``check``: raise :class:`LinkError` if receiving had failed."""
+        rx, self._rx = self._rx, None
+        if rx is None:
+            return
+        frames = CanBatch.concat([*(got or []), rx.stop()])
+        if len(frames) and self._rx_to is not None:
+            self._rx_to(frames)
+        if check and rx.error is not None:
+            raise LinkError(f"receiving from the DUT failed: {rx.error}") from rx.error
 
     # ------------------------------------------------------------------ end
     def close(self) -> dict:
         """Stop the process and close the links (idempotent); returns exit facts."""
         facts: dict = {}
         try:
+            self._stop_receiving(check=False)  # a real-time run that stopped early: what came before
             if self.process is not None:
                 p = self.process
                 try:
