@@ -10,13 +10,12 @@ a JSON file (``{config}``), starts the command line, and then either
   <bench.transport.serial_link.SerialLink.deliver>`), sends the CAN frames due by ``T``
   (ending with BENCH_TIME(T), lockstep bit set) and waits for a DUT_READY >= ``T``,
   recording what the DUT sends meanwhile; or
-* **real time**: emits every frame and byte group at its time on the clock (bytes paced
-  at the line's baud), measuring the lateness of every emission, while a receive thread
-  (:class:`~bench.transport.can_link.CanReceiveThread`) stamps every DUT frame with the
-  bench time of its arrival as it arrives; the emission loop only waits and sends (no
-  decoding, no recording). After the last emission the bench keeps receiving until the
-  DUT's answer to the end of the run has come (a NAV_SOLUTION whose time of validity is
-  the run's end, at most :data:`LINGER_S`), then records everything received.
+* **real time** (:mod:`bench.run.realtime_exchange`): waits until the DUT has opened its
+  pty lines, emits every frame and byte group at its time on the clock (bytes paced at
+  the line's baud), measuring the lateness of every emission and never waiting on the
+  DUT, while a receive thread stamps every DUT frame with the bench time of its arrival;
+  after the last emission it waits for the DUT's answer to the end of the run and
+  records everything received.
 
 A DUT that dies, does not answer, never starts, stops reading its serial lines, or
 floods the bus ends the run with a :class:`~bench.errors.DutError` naming what happened
@@ -38,11 +37,12 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.clock.pacing import Clock, TimingLog
+from bench.clock.pacing import Clock
 from bench.dut.process import DutProcess, LogLine, describe_exit, fill_placeholders, uses_placeholder
 from bench.errors import ConfigError, DutError, LinkError
 from bench.frames import CanBatch, SerialBatch
-from bench.run.realtime_plan import EMIT_CAN, EMIT_IMU, RealtimePlan, plan_emissions
+from bench.run.realtime_exchange import RealtimeExchange
+from bench.run.realtime_plan import RealtimePlan
 from bench.run.spec import DutSpec, LinkSpec
 from bench.run.startup import REPEATED_IDS, advance_alive
 from bench.run.traffic import BENCH_TIME_ID, Traffic
@@ -53,13 +53,9 @@ from bench.transport.serial_reader import SerialReader
 from bench.transport.udp import RUN_TAG_ENV, UdpMulticastCanLink
 from bench.wire.can import codec
 
-__all__ = ["ExternalDut", "RealtimePlan", "serial_config", "can_config", "LINGER_S"]
+__all__ = ["ExternalDut", "RealtimePlan", "serial_config", "can_config"]
 
 _READY = codec("DUT_READY")
-_SOLUTION = codec("NAV_SOLUTION")
-#: Real time: how long (wall seconds) the bench waits after its last emission for the
-#: DUT's answer to the end of the run.
-LINGER_S = 2.0
 
 
 def serial_config(table: dict, key: str, default_baud: int) -> SerialConfig:
@@ -80,7 +76,7 @@ def can_config(table: dict, *, free_port: bool = False) -> CanConfig:
     return cfg
 
 
-class ExternalDut:
+class ExternalDut(RealtimeExchange):
     """A DUT on real links, started as a process unless ``spec.kind == "hardware"``.
 
     Parameters
@@ -116,6 +112,12 @@ class ExternalDut:
         self._rt_clock: Clock | None = None  # real time: the run's clock stamps them
         self._rx: CanReceiveThread | None = None
         self._rx_to: Callable[[CanBatch], None] | None = None
+        # real time: bytes a full pty line did not take yet, per emission kind, and since when
+        self._held: tuple[bytearray, bytearray, bytearray] = (bytearray(), bytearray(), bytearray())
+        self._held_since = [0.0, 0.0, 0.0]
+        #: real time, per line: how often its DUT left it full, the most bytes held, the
+        #: longest time until it took them (the DUT's lag: the bench never waits on it)
+        self.held_stats: dict[str, dict] = {}
         self.ready_ns = -1  # latest DUT_READY time received
         self.process: DutProcess | None = None
         self._recent: list[LogLine] = []  # the last output lines, for error messages
@@ -348,103 +350,6 @@ class ExternalDut:
         k = self.can.remote + self.can.error_frames - since
         return f" ({k} of them remote or error frames)" if k else ""
 
-    # ------------------------------------------------------------------ real time
-    def plan_realtime(self, traffic: Traffic) -> RealtimePlan:
-        """Prepare one window's emissions before the clock starts (real time)."""
-        return plan_emissions(traffic, self.imu_baud, self.gnss_baud)
-
-    def begin_realtime(self, clock: Clock, received: Callable[[CanBatch], None]) -> None:
-        """The clock has started: from now on every frame the DUT sends is stamped with the
-        bench time it arrives at, by a thread, and handed to ``received`` after the last
-        emission (:meth:`end_realtime`), or at :meth:`close` if the run stopped before."""
-        assert self.can is not None
-        self._rt_clock = clock
-        self._rx_to = received
-        self._rx = CanReceiveThread(self.can)
-
-    def exchange_realtime(self, plan: RealtimePlan, clock: Clock, timing: TimingLog, end_ns: int) -> None:
-        """Emit one window's traffic on the clock (after :meth:`begin_realtime`): wait,
-        send, measure the lateness; nothing else but a flood check per emission and a look
-        at the DUT process every 100 ms of bench time."""
-        flood = int(self.spec.flood_frames_per_s * max(1e-9 * (end_ns - self.now_ns), 0.01)) + 100
-        with self._dut_side():
-            self._emit(plan, clock, timing, flood)
-        self.now_ns = end_ns
-
-    def _emit(self, plan: RealtimePlan, clock: Clock, timing: TimingLog, flood: int) -> None:
-        assert self.can is not None and self._rx is not None
-        can, rx = self.can, self._rx
-        send_can, write_imu, write_gnss = can.send, self.serial["imu"].write, self.serial["gnss"].write
-        n0, odd0 = can.peer_frames, can.remote + can.error_frames  # every frame counts
-        k = 0
-        next_check = self.now_ns  # the DUT process is checked every 100 ms of bench time
-        times, kinds, index = plan.times, plan.kinds, plan.index
-        on_can, on_imu = EMIT_CAN, EMIT_IMU  # locals: no global lookups per emission
-        wait_until, add = clock.wait_until, timing.add
-        n = len(times)
-        while k < n:
-            t = times[k]
-            add(t, wait_until(t))
-            while k < n and times[k] == t:
-                kind, i = kinds[k], index[k]
-                if kind == on_can:
-                    send_can(plan.can[i])
-                elif kind == on_imu:
-                    write_imu(plan.imu[i])
-                else:
-                    write_gnss(plan.gnss[i])
-                k += 1
-            if can.peer_frames - n0 > flood or rx.full:
-                self.now_ns = t
-                self._flush_lines()
-                raise DutError(
-                    f"the DUT floods the bus: {can.peer_frames - n0} frames{self._odd_frames(odd0)} "
-                    f"in one window (limit {flood})"
-                )
-            if t >= next_check:  # a few microseconds every 100 ms, late or not
-                next_check = t + 100_000_000
-                self.now_ns = t
-                self._check_process()
-                if rx.error is not None:
-                    raise LinkError(f"receiving from the DUT failed: {rx.error}") from rx.error
-
-    def end_realtime(self, end_ns: int, linger_s: float = LINGER_S) -> None:
-        """After the last emission: receive until the DUT's answer to ``end_ns`` (a
-        NAV_SOLUTION valid at ``end_ns`` or later) has come, at most ``linger_s`` wall
-        seconds, then stop the receive thread and hand over everything it received."""
-        assert self._rx is not None
-        deadline = time.monotonic() + linger_s
-        got: list[CanBatch] = []
-        while True:
-            batch = self._rx.take()
-            if len(batch):
-                got.append(batch)
-                sel = np.flatnonzero(batch.can_id == _SOLUTION.frame_id)
-                if sel.size:
-                    values, status = _SOLUTION.decode(batch.take(sel))
-                    if np.any(values["t_ns"][status == 0] >= end_ns):
-                        break
-            if time.monotonic() >= deadline or self._rx.error is not None:
-                break
-            self._check_process()
-            time.sleep(0.005)
-        self.now_ns = end_ns
-        self._stop_receiving(got)
-        self._check_process()
-        self._flush_lines()
-
-    def _stop_receiving(self, got: list[CanBatch] | None = None, *, check: bool = True) -> None:
-        """Stop the real-time receive thread and hand over what it received (idempotent);
-        ``check``: raise :class:`LinkError` if receiving had failed."""
-        rx, self._rx = self._rx, None
-        if rx is None:
-            return
-        frames = CanBatch.concat([*(got or []), rx.stop()])
-        if len(frames) and self._rx_to is not None:
-            self._rx_to(frames)
-        if check and rx.error is not None:
-            raise LinkError(f"receiving from the DUT failed: {rx.error}") from rx.error
-
     # ------------------------------------------------------------------ end
     def close(self) -> dict:
         """Stop the process and close the links (idempotent); returns exit facts."""
@@ -472,6 +377,8 @@ class ExternalDut:
             try:
                 self._flush_serial(final=True)
             finally:
+                if self.held_stats:
+                    facts["serial_held"] = self.held_stats
                 rx = {name: r.bytes_read for name, r in self.readers.items() if r.bytes_read}
                 if rx:
                     facts["serial_rx_bytes"] = rx

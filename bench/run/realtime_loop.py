@@ -39,6 +39,8 @@ def run_realtime(s: RunSession) -> None:
             plans.append((t0, t1, steps_of(traffic, step_times), step_times))
     if ext is not None:
         ext.start(None, out.feed)
+        waited = ext.await_listening()
+        s.rec.metadata("realtime_start", {"waited_for_dut_s": f"{waited:.3f}"})
     else:
         out.deferred = True  # the in-process DUT's output is recorded after the loop
     s.rec.metadata("realtime_scheduling", realtime_priority.acquire())
