@@ -114,7 +114,8 @@ class ExternalDut(RealtimeExchange):
         self._rx_to: Callable[[CanBatch], None] | None = None
         # real time: bytes a full pty line did not take yet, per emission kind, and since when
         self._held: tuple[bytearray, bytearray, bytearray] = (bytearray(), bytearray(), bytearray())
-        self._held_since = [0.0, 0.0, 0.0]
+        self._held_since = [0.0, 0.0, 0.0]  # the last progress (a DUT that takes nothing for write_timeout stopped)
+        self._held_start = [0.0, 0.0, 0.0]
         #: real time, per line: how often its DUT left it full, the most bytes held, the
         #: longest time until it took them (the DUT's lag: the bench never waits on it)
         self.held_stats: dict[str, dict] = {}

@@ -168,7 +168,7 @@ class RealtimeExchange:
         """A pty line is full (its DUT has not read): keep the bytes, in order, for later."""
         name = "imu" if kind == EMIT_IMU else "gnss"
         self._held[kind].extend(rest)
-        self._held_since[kind] = time.monotonic()
+        self._held_since[kind] = self._held_start[kind] = time.monotonic()
         st = self.held_stats.setdefault(name, {"episodes": 0, "max_bytes": 0, "longest_s": 0.0})
         st["episodes"] += 1
 
@@ -188,7 +188,7 @@ class RealtimeExchange:
             if m:
                 del buf[:m]
                 if not buf:
-                    st["longest_s"] = max(st["longest_s"], round(now - self._held_since[kind], 6))
+                    st["longest_s"] = max(st["longest_s"], round(now - self._held_start[kind], 6))
                     continue
                 self._held_since[kind] = now  # progress: the DUT reads, slowly
             elif now - self._held_since[kind] > link.config.write_timeout:
