@@ -150,7 +150,7 @@ def realtime(out: Path, seconds: float) -> None:
         first = None
         for label, fifo, spin, pin in VARIANTS:
             res, late, path = _rt_run(netns, ns, out, seconds, fifo, spin, pin)
-            print(f"   {label:<44} {_fmt(late)} ({res.status})")
+            print(f"   {label:<44} {_fmt(late)} ({res.status}{_output_note(path)})")
             if first is None:
                 first = late, path
         assert first is not None
@@ -191,6 +191,21 @@ def platform_floor(seconds: float, fifo: bool = True) -> np.ndarray:
         else:
             os.environ["BENCH_RT_PRIORITY"] = saved
     return late
+
+
+def _output_note(path: Path) -> str:
+    """What the DUT's output and its lines looked like: bad frames, lines held."""
+    import json
+
+    from bench.record.mcap_io import RecordingReader
+
+    md = RecordingReader(path).metadata()
+    bad = json.loads(md.get("dut_output", {}).get("bad_frames", "{}") or "{}")
+    held = json.loads(md.get("dut_exit", {}).get("serial_held", "{}") or "{}")
+    note = f"; DUT output bad frames {bad or 0}"
+    for name, h in held.items():
+        note += f"; {name} line held {h['episodes']}x, up to {h['max_bytes']} B, {h['longest_s'] * 1e3:.0f} ms"
+    return note
 
 
 def _fmt(late_ns: np.ndarray) -> str:

@@ -47,7 +47,8 @@ from bench.run.spec import DutSpec, LinkSpec
 from bench.run.startup import REPEATED_IDS, advance_alive
 from bench.run.traffic import BENCH_TIME_ID, Traffic
 from bench.textsafe import for_terminal
-from bench.transport.can_link import CanConfig, CanLink, CanReceiveThread, open_can_link
+from bench.transport.can_link import CanConfig, CanLink, open_can_link
+from bench.transport.can_rx import CanReceiveThread
 from bench.transport.serial_link import SerialConfig, SerialLink, open_serial_link
 from bench.transport.serial_reader import SerialReader
 from bench.transport.udp import RUN_TAG_ENV, UdpMulticastCanLink
@@ -130,6 +131,7 @@ class ExternalDut(RealtimeExchange):
         try:
             free = spec.kind == "external" and uses_placeholder(spec.command, "can_port")
             self.can = open_can_link(can_config(links.can, free_port=free), clock=self._bench_now)
+            self.can.arrival_clock = self._bench_at
             self.serial["imu"] = open_serial_link(serial_config(links.imu, "imu", 460_800))
             self.serial["gnss"] = open_serial_link(serial_config(links.gnss, "gnss", 115_200))
             for name, link in self.serial.items():
@@ -139,11 +141,6 @@ class ExternalDut(RealtimeExchange):
         except BaseException:
             self.close()
             raise
-
-    def _bench_now(self) -> int:
-        """Bench time now: the run's clock in real time, the step reached in lockstep."""
-        clock = self._rt_clock
-        return clock.now_ns() if clock is not None else self.now_ns
 
     # ------------------------------------------------------------------ process
     def _start(self) -> None:

@@ -36,7 +36,7 @@ from bench.errors import DutError, LinkError
 from bench.frames import CanBatch
 from bench.run.realtime_plan import EMIT_CAN, EMIT_GNSS, EMIT_IMU, RealtimePlan, plan_emissions
 from bench.run.traffic import Traffic
-from bench.transport.can_link import CanReceiveThread
+from bench.transport.can_rx import CanReceiveThread
 from bench.wire.can import codec
 
 __all__ = ["RealtimeExchange", "LINGER_S"]
@@ -70,6 +70,23 @@ def _opened_by_group(pgid: int, paths: set[str]) -> set[str]:
 class RealtimeExchange:
     """The real-time methods of :class:`~bench.run.external.ExternalDut` (see the module
     docstring); the attributes they use are set up there."""
+
+    def _bench_now(self) -> int:
+        """Bench time now: the run's clock in real time, the step reached in lockstep."""
+        clock = self._rt_clock
+        return clock.now_ns() if clock is not None else self.now_ns
+
+    def _bench_at(self, realtime_ns: int) -> int:
+        """Bench time of an arrival the kernel stamped (CLOCK_REALTIME ns): in real time the
+        clock now minus the frame's age, so the stamp does not depend on when the receive
+        thread got to run; in lockstep the step reached."""
+        clock = self._rt_clock
+        if clock is None:
+            return self.now_ns
+        now, age = clock.now_ns(), time.time_ns() - realtime_ns
+        if not 0 <= age < 1_000_000_000:  # the host clock stepped meanwhile: now is all we know
+            return now
+        return now - round(age * getattr(clock, "speed", 1.0))
 
     def plan_realtime(self, traffic: Traffic) -> RealtimePlan:
         """Prepare one window's emissions before the clock starts (real time)."""

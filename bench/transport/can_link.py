@@ -27,15 +27,16 @@ returned, but they are counted (``remote``, ``error_frames``) and, like every fr
 peer sends, in :attr:`CanLink.peer_frames`, which a flood limit is checked against.
 
 Time stamps: a sent frame's ``t_ns`` (bench time) goes out as the message timestamp in
-seconds. A received frame gets ``t_ns`` from the link's ``clock`` (bench time now) when
-one is given, else the message timestamp converted to ns (the sender's bench time on
-``virtual``, the host clock of the receiving socket on real interfaces).
+seconds. A received frame gets ``t_ns`` from the link's ``arrival_clock`` applied to the
+kernel's arrival time where the link knows it (udp_multicast: ``SO_TIMESTAMPNS``), else
+from its ``clock`` (bench time now) when one is given, else the message timestamp
+converted to ns (the sender's bench time on ``virtual``, the host clock of the receiving
+socket on real interfaces).
 """
 
 from __future__ import annotations
 
 import socket
-import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field, fields
@@ -50,7 +51,6 @@ from bench.frames import CanBatch, CanFrame
 __all__ = [
     "CanConfig",
     "CanLink",
-    "CanReceiveThread",
     "open_can_link",
     "socketcan_unavailable",
     "VCAN_SETUP",
@@ -190,6 +190,10 @@ class CanLink:
         self.error_frames = 0
         #: Every frame a peer sent that reached this link: data, remote and error frames.
         self.peer_frames = 0
+        #: Maps the kernel's arrival time of a frame (CLOCK_REALTIME ns, where the link knows
+        #: it: udp_multicast) to bench time; used instead of ``clock`` when set.
+        self.arrival_clock: Callable[[int], int] | None = None
+        self._arrival_ns: int | None = None
         self._closed = True  # until the bus is open
         if self.config.interface == "socketcan":
             reason = socketcan_unavailable(str(self.config.resolved_channel))
@@ -231,7 +235,11 @@ class CanLink:
         if msg.is_remote_frame:
             self.remote += 1
             return None
-        t_ns = self.clock() if self.clock is not None else round(msg.timestamp * 1e9)
+        arrival, self._arrival_ns = self._arrival_ns, None
+        if arrival is not None and self.arrival_clock is not None:
+            t_ns = self.arrival_clock(arrival)
+        else:
+            t_ns = self.clock() if self.clock is not None else round(msg.timestamp * 1e9)
         return CanFrame(int(t_ns), int(msg.arbitration_id), bytes(msg.data), bool(msg.is_fd))
 
     # ---------------------------------------------------------------- traffic
@@ -344,66 +352,6 @@ class CanLink:
     def __del__(self) -> None:  # a forgotten link must not keep a bus (or a socket) open
         if not getattr(self, "_closed", True):
             self.close()
-
-
-class CanReceiveThread:
-    """Receives a link's frames in a thread of its own (real-time runs).
-
-    Each frame is stamped by the link's ``clock`` the moment the thread reads it, whatever
-    the caller is doing; the caller never waits on it (:meth:`take` hands over what came,
-    :attr:`frames_pending` counts it without a lock). The thread waits in the link's
-    receive (which releases the interpreter lock) and does nothing else, so it competes
-    with an emission loop only for the microseconds a frame takes. It stops reading once
-    ``max_pending`` frames wait to be taken (memory bounded; a flood is the caller's to
-    judge from :attr:`CanLink.peer_frames`). While it runs, nothing else may receive on
-    the link. :attr:`error` holds what stopped it (the link failed), if anything.
-    """
-
-    def __init__(self, link: CanLink, *, max_pending: int = 4 << 20, poll_s: float = 0.05, name: str = "can-rx"):
-        self.link = link
-        self.max_pending = max_pending
-        self.poll_s = poll_s
-        self.error: Exception | None = None
-        self.full = False
-        self._frames: list[CanFrame] = []
-        self._lock = threading.Lock()
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._loop, name=name, daemon=True)
-        self._thread.start()
-
-    @property
-    def frames_pending(self) -> int:
-        """Frames received and not yet taken."""
-        return len(self._frames)
-
-    def _loop(self) -> None:
-        link, frames, lock = self.link, self._frames, self._lock
-        try:
-            while not self._stop.is_set():
-                if len(frames) >= self.max_pending:
-                    self.full = True
-                    self._stop.wait(self.poll_s)
-                    continue
-                got = link._collect(self.poll_s, 4096)
-                if got:
-                    with lock:
-                        frames.extend(got)
-        except Exception as exc:  # the link failed or was closed under the thread
-            self.error = exc
-
-    def take(self) -> CanBatch:
-        """The frames received since the last call, in arrival order (an empty batch if none)."""
-        with self._lock:
-            got = self._frames[:]
-            del self._frames[:]
-        self.full = False
-        return CanBatch.from_frames(got) if got else CanBatch.empty()
-
-    def stop(self) -> CanBatch:
-        """Stop the thread (within ``poll_s``) and return what it still holds."""
-        self._stop.set()
-        self._thread.join()
-        return self.take()
 
 
 def open_can_link(

@@ -25,7 +25,8 @@ from bench.record.wire_topics import SERIAL_TX, read_serial
 from bench.run.engine import run
 from bench.run.spec import ClockSpec, DutSpec, LinkSpec, RunSpec
 from bench.scenario.loader import load_scenario
-from bench.transport.can_link import CanConfig, CanLink, CanReceiveThread
+from bench.transport.can_link import CanConfig, CanLink
+from bench.transport.can_rx import CanReceiveThread
 from tests.run.robust_util import SHORT, TABLES
 from tests.transport import netns
 
@@ -94,3 +95,36 @@ def test_a_dut_that_never_opens_its_lines_is_a_dut_error_before_the_clock_starts
     assert res.status == "dut_error" and "did not open /dev/pts/" in res.reason, res.reason
     assert "ICD 5" in res.reason
     assert RecordingReader(res.path).topics()["/bench/timing"].messages == 0  # nothing emitted
+
+
+def _kernel_stamps() -> list[tuple[int, int, int]]:
+    """(before send, stamp, after send) of 50 datagrams over udp_multicast on the loopback,
+    the receiving link stamping with the kernel's arrival time (its clock would say -1)."""
+    import time
+
+    from bench.transport.udp import UdpMulticastCanLink
+
+    cfg = CanConfig(interface="udp_multicast", channel="239.74.164.83", options={"port": 43483})
+    rx = UdpMulticastCanLink(cfg, clock=lambda: -1, run_tag="")
+    tx = UdpMulticastCanLink(cfg, run_tag="")
+    rx.arrival_clock = lambda realtime_ns: realtime_ns
+    out = []
+    try:
+        for i in range(50):
+            before = time.time_ns()
+            tx.send(CanFrame(i, 0x300, bytes(8), False))
+            after = time.time_ns()
+            frame = rx.recv(timeout=60.0)  # a hang guard: it is there already
+            assert frame is not None
+            out.append((before, frame.t_ns, after))
+    finally:
+        rx.close()
+        tx.close()
+    return out
+
+
+def test_udp_frames_are_stamped_with_the_kernels_arrival_time(ns):
+    """The receive stamp is the kernel's (SO_TIMESTAMPNS), taken while the datagram was
+    sent on the loopback, not when a thread got round to reading it."""
+    for before, stamp, after in netns.call_in(ns, _kernel_stamps):
+        assert before <= stamp <= after
