@@ -93,6 +93,10 @@ class RealTimeClock(Clock):
     def now_ns(self) -> int:
         return self._origin + (time.monotonic_ns() - self._t0) * self._num // self._den  # rounded down
 
+    def at_monotonic(self, monotonic_ns: int) -> int:
+        """Bench time at the host's ``CLOCK_MONOTONIC`` instant ``monotonic_ns``."""
+        return self._origin + (monotonic_ns - self._t0) * self._num // self._den
+
     def wait_until(self, t_ns: int) -> int:
         due = self._wall(t_ns)
         now = time.monotonic_ns()

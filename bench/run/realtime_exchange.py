@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.clock.pacing import Clock, TimingLog
+from bench.clock.pacing import Clock, RealTimeClock, TimingLog
 from bench.errors import DutError, LinkError
 from bench.frames import CanBatch
 from bench.run.realtime_plan import EMIT_CAN, EMIT_GNSS, EMIT_IMU, RealtimePlan, plan_emissions
@@ -77,16 +77,25 @@ class RealtimeExchange:
         return clock.now_ns() if clock is not None else self.now_ns
 
     def _bench_at(self, realtime_ns: int) -> int:
-        """Bench time of an arrival the kernel stamped (CLOCK_REALTIME ns): in real time the
-        clock now minus the frame's age, so the stamp does not depend on when the receive
-        thread got to run; in lockstep the step reached."""
+        """Bench time of an arrival the kernel stamped (CLOCK_REALTIME ns), so the stamp does
+        not depend on when the receive thread got to run; in lockstep the step reached.
+
+        The realtime clock's offset to the monotonic one is the smallest of the paired reads
+        (monotonic first: a pause between the two reads only makes a pair larger) over the
+        last second, so neither a pause nor the host clock's slewing moves the stamp."""
         clock = self._rt_clock
-        if clock is None:
-            return self.now_ns
-        now, age = clock.now_ns(), time.time_ns() - realtime_ns
-        if not 0 <= age < 1_000_000_000:  # the host clock stepped meanwhile: now is all we know
-            return now
-        return now - round(age * getattr(clock, "speed", 1.0))
+        if not isinstance(clock, RealTimeClock):
+            return self._bench_now()
+        mono = time.monotonic_ns()
+        off = time.time_ns() - mono
+        best, since = self._rt_offset
+        if off <= best or mono - since > 1_000_000_000:
+            best, since = off, mono
+            self._rt_offset = (best, since)
+        arrival = realtime_ns - best
+        if not mono - 1_000_000_000 < arrival <= mono:  # the host clock stepped meanwhile: now is all we know
+            arrival = mono
+        return clock.at_monotonic(arrival)
 
     def plan_realtime(self, traffic: Traffic) -> RealtimePlan:
         """Prepare one window's emissions before the clock starts (real time)."""
