@@ -152,22 +152,13 @@ class DutInputs:
         return self.message("BENCH_CMD").get("command", np.zeros(0, np.int64))
 
 
-def _empty(dtype: np.dtype) -> np.ndarray:
-    a = np.zeros(0, dtype)
-    a.flags.writeable = False  # shared by every output without records
-    return a
-
-
-_NO_SOLUTIONS, _NO_QUALITIES = _empty(NAV_SOLUTION_DTYPE), _empty(NAV_QUALITY_DTYPE)
-
-
 @dataclass
 class EstimatorOutput:
     """Navigation epochs of one step: NAV_SOLUTION records and, for the same epochs,
     NAV_QUALITY records (optional). ``rx_ns`` is filled by the bench."""
 
-    solutions: np.ndarray = field(default_factory=lambda: _NO_SOLUTIONS)
-    qualities: np.ndarray = field(default_factory=lambda: _NO_QUALITIES)
+    solutions: np.ndarray = field(default_factory=lambda: np.zeros(0, NAV_SOLUTION_DTYPE))
+    qualities: np.ndarray = field(default_factory=lambda: np.zeros(0, NAV_QUALITY_DTYPE))
 
 
 class Estimator(ABC):
