@@ -7,9 +7,12 @@
    an external process over pty + udp_multicast (in a network namespace, when permitted).
 2. Real time, 60 s, 1 kHz IMU plus all other traffic (odometer, Doppler, driver, BDS,
    BENCH_*), emitted to an external DUT process over pty + udp_multicast: lateness p50,
-   p99, p99.9, max of every emission. Targets: p99 <= 50 us, max <= 2 ms. Beside it,
-   python-can's own player (``can.MessageSync``) paces the same emissions, and the ratio
-   of our max lateness to its is printed.
+   p99, p99.9, max of every emission. Targets: p99 <= 50 us, max <= 3x the max of an
+   empty 1 kHz loop in the same run. Printed side by side, to show what is ruled out:
+   the empty loop (SCHED_FIFO and SCHED_OTHER), the bench under SCHED_FIFO (default),
+   under SCHED_FIFO sleeping instead of spinning (headroom from the kernel's real-time
+   throttling), under SCHED_OTHER, with the DUT pinned to the other core, and python-can's
+   own player (``can.MessageSync``) on the same emissions and links.
 
     .venv/bin/python benchmarks/bench_run.py [--quick]
 """
@@ -88,42 +91,90 @@ def external_lockstep(out: Path) -> None:
                   f"{res.status}, {el:.1f} s, {90 / el:.0f}x real time")
 
 
+#: The real-time variants printed side by side: (label, SCHED_FIFO, spin before each due
+#: time in ns, DUT pinned to the other core).
+VARIANTS = (
+    ("bench, SCHED_FIFO, spin 300 us (default)", True, 300_000, False),
+    ("bench, SCHED_FIFO, sleep only (headroom)", True, 0, False),
+    ("bench, SCHED_OTHER, spin 300 us", False, 300_000, False),
+    ("bench, SCHED_FIFO, DUT pinned to cpu 1", True, 300_000, True),
+)
+
+
+def _rt_run(netns, ns, out: Path, seconds: float, fifo: bool, spin_ns: int, pin: bool):
+    """One real-time run of the 1 kHz traffic to the decode-only harness; (result, lateness)."""
+    import functools
+    import os
+
+    from bench.clock.pacing import RealTimeClock
+    from bench.run import session
+
+    sc = load_scenario(SHORT)
+    pre = "taskset -c 1 " if pin else ""
+    cmd = (f"{pre}ip netns exec {ns} {sys.executable} -m bench.dut.harness --estimator decode_only "
+           "--can-interface {can_interface} --can-channel {can_channel} --can-port 43392 "
+           "--imu {imu_port} --gnss {gnss_port}")
+    spec = RunSpec(scenario=sc, tables=TABLES_1K, schedule=FaultSchedule(), dut=DutSpec("external", command=cmd),
+                   links=LinkSpec(can={"interface": "udp_multicast", "channel": "239.74.163.92", "port": 43392}),
+                   clock=ClockSpec(mode="realtime"), out=out / "rt.mcap", duration_ns=round(seconds * 1e9))
+    saved_env, saved_clock = os.environ.get("BENCH_RT_PRIORITY"), session.RealTimeClock
+    saved_aff = os.sched_getaffinity(0)
+    os.environ["BENCH_RT_PRIORITY"] = "50" if fifo else "0"
+    session.RealTimeClock = functools.partial(RealTimeClock, spin_ns=spin_ns)  # type: ignore[misc]
+    try:
+        if pin:
+            os.sched_setaffinity(0, {0})
+        res = netns.call_in(ns, lambda: run(spec))
+    finally:
+        os.sched_setaffinity(0, saved_aff)
+        session.RealTimeClock = saved_clock
+        if saved_env is None:
+            os.environ.pop("BENCH_RT_PRIORITY", None)
+        else:
+            os.environ["BENCH_RT_PRIORITY"] = saved_env
+    return res, _lateness_of(spec.out), spec.out
+
+
 def realtime(out: Path, seconds: float) -> None:
     print(f"\n2. Real time, {seconds:g} s, IMU 1 kHz + odometer 100 Hz + Doppler 50 Hz + driver 50 Hz + BDS 1 Hz + "
-          "BENCH_TIME 100 Hz, external DUT over pty + udp_multicast")
+          "BENCH_TIME 100 Hz, external DUT (decode-only harness) over pty + udp_multicast; lateness of every emission")
     netns, reason = _netns()
     if netns is None:
         print(f"   skipped ({reason})")
         return
-    sc = load_scenario(SHORT)
     with netns.multicast_netns() as ns:
-        cmd = (f"ip netns exec {ns} {sys.executable} -m bench.dut.harness --estimator decode_only "
-               "--can-interface {can_interface} --can-channel {can_channel} --can-port 43392 "
-               "--imu {imu_port} --gnss {gnss_port}")
-        spec = RunSpec(scenario=sc, tables=TABLES_1K, schedule=FaultSchedule(), dut=DutSpec("external", command=cmd),
-                       links=LinkSpec(can={"interface": "udp_multicast", "channel": "239.74.163.92", "port": 43392}),
-                       clock=ClockSpec(mode="realtime"), out=out / "rt.mcap", duration_ns=round(seconds * 1e9))
-        res = netns.call_in(ns, lambda: run(spec))
-        ours = _lateness_of(spec.out)
-        print(f"   bench:           {res.status}; {_fmt(ours)}  targets p99 <= 50 us "
-              f"{'MET' if np.percentile(ours, 99) <= 50e3 else 'MISSED'}, max <= 2 ms "
-              f"{'MET' if ours.max() <= 2e6 else 'MISSED'}")
         floor = platform_floor(seconds)
-        print(f"   host floor:      an empty 1 kHz loop, same scheduling, no work; {_fmt(floor)}")
-        theirs = netns.call_in(ns, lambda: _message_sync(spec.out))
-        print(f"   can.MessageSync: same emissions, same links; {_fmt(theirs)}")
-        print(f"   ratio of max lateness, bench / MessageSync: {ours.max() / max(theirs.max(), 1):.3f}; "
-              f"p99: {np.percentile(ours, 99) / max(np.percentile(theirs, 99), 1):.3f}")
+        floor_other = platform_floor(seconds, fifo=False)
+        print(f"   {'empty 1 kHz loop, SCHED_FIFO':<44} {_fmt(floor)}")
+        print(f"   {'empty 1 kHz loop, SCHED_OTHER':<44} {_fmt(floor_other)}")
+        first = None
+        for label, fifo, spin, pin in VARIANTS:
+            res, late, path = _rt_run(netns, ns, out, seconds, fifo, spin, pin)
+            print(f"   {label:<44} {_fmt(late)} ({res.status}{_output_note(path)})")
+            if first is None:
+                first = late, path
+        assert first is not None
+        ours, path = first
+        theirs = netns.call_in(ns, lambda: _message_sync(path))
+        print(f"   {'can.MessageSync, same emissions and links':<44} {_fmt(theirs)}")
+    p99, mx = np.percentile(ours, 99), ours.max()
+    print(f"   targets (default variant): p99 <= 50 us {'MET' if p99 <= 50e3 else 'MISSED'} ({p99 / 1e3:.1f} us); "
+          f"max <= 3x the empty loop's max ({3 * floor.max() / 1e3:.0f} us) "
+          f"{'MET' if mx <= 3 * floor.max() else 'MISSED'} ({mx / 1e3:.0f} us); "
+          f"max / MessageSync's max {mx / max(theirs.max(), 1):.2f}")
 
 
-def platform_floor(seconds: float) -> np.ndarray:
+def platform_floor(seconds: float, fifo: bool = True) -> np.ndarray:
     """Lateness of an empty 1 kHz sleep-then-spin loop under the same scheduling: what the
     host (here a virtual machine) itself allows, with no work done at all."""
     import gc
+    import os
 
     from bench.clock import realtime_priority
     from bench.clock.pacing import RealTimeClock
 
+    saved = os.environ.get("BENCH_RT_PRIORITY")
+    os.environ["BENCH_RT_PRIORITY"] = "50" if fifo else "0"
     realtime_priority.acquire()
     try:
         clock = RealTimeClock()
@@ -135,7 +186,26 @@ def platform_floor(seconds: float) -> np.ndarray:
     finally:
         realtime_priority.release()
         gc.collect()
+        if saved is None:
+            os.environ.pop("BENCH_RT_PRIORITY", None)
+        else:
+            os.environ["BENCH_RT_PRIORITY"] = saved
     return late
+
+
+def _output_note(path: Path) -> str:
+    """What the DUT's output and its lines looked like: bad frames, lines held."""
+    import json
+
+    from bench.record.mcap_io import RecordingReader
+
+    md = RecordingReader(path).metadata()
+    bad = json.loads(md.get("dut_output", {}).get("bad_frames", "{}") or "{}")
+    held = json.loads(md.get("dut_exit", {}).get("serial_held", "{}") or "{}")
+    note = f"; DUT output bad frames {bad or 0}"
+    for name, h in held.items():
+        note += f"; {name} line held {h['episodes']}x, up to {h['max_bytes']} B, {h['longest_s'] * 1e3:.0f} ms"
+    return note
 
 
 def _fmt(late_ns: np.ndarray) -> str:

@@ -293,6 +293,10 @@ def aggregate_runs(criterion: Criterion, runs: Sequence[RunValue]) -> Aggregate:
     """Combine the per-run outcomes of one criterion per its Monte Carlo mode."""
     if not runs:
         return Aggregate(math.nan, Verdict.ERROR, math.nan, "no run to judge")
+    applies = [r for r in runs if r.verdict is not Verdict.NA]
+    if not applies:  # not applicable to any run (a latency in lockstep)
+        return Aggregate(math.nan, Verdict.NA, math.nan, runs[0].reason)
+    runs = applies
     mc = criterion.monte_carlo
     band = criterion.band()
     errors = [r for r in runs if r.verdict is Verdict.ERROR]

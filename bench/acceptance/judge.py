@@ -28,7 +28,21 @@ from bench.errors import ConfigError, RecordingError
 from bench.scoring.data import DutDataError, NoDataError, RunData, load_run
 from bench.scoring.metrics import Scorer
 
-__all__ = ["RunResult", "CriterionResult", "CaseResult", "score_recording", "score_run", "judge_case", "case_of"]
+__all__ = [
+    "RunResult",
+    "CriterionResult",
+    "CaseResult",
+    "score_recording",
+    "score_run",
+    "judge_case",
+    "case_of",
+    "NOT_IN_LOCKSTEP",
+]
+
+#: Metrics that do not apply to a lockstep run (verdict N/A): the DUT's output latency,
+#: arrival minus time of validity, is set there by the bench's wait for DUT_READY.
+NOT_IN_LOCKSTEP = ("output.latency_mean", "output.latency_p95", "output.latency_max")
+_NA_LOCKSTEP = "not applicable in lockstep (the bench waits for each answer): judged in real-time runs only"
 
 
 @dataclass
@@ -125,7 +139,10 @@ def score_run(run: RunData, case: TestCase) -> RunResult:
     broken = [f"its output failed {k}" for k, v in checked.items() if v.verdict is Verdict.FAIL]
     for c in criteria:
         compared = c.relative_to is not None
-        rv = checked[c.id] if c.id in checked else _measure(scorer, c, seed, integ.bench, integ.dut + broken)
+        if mode != "realtime" and c.metric in NOT_IN_LOCKSTEP:
+            rv = RunValue(seed, math.nan, Verdict.NA, _NA_LOCKSTEP)
+        else:
+            rv = checked[c.id] if c.id in checked else _measure(scorer, c, seed, integ.bench, integ.dut + broken)
         if compared:
             result.raw[c.id] = rv
         else:
@@ -170,6 +187,8 @@ def score_recording(path: str | Path, case: TestCase | None = None) -> tuple[Tes
 
 
 def _ratio(c: Criterion, mine: RunValue, base: RunValue) -> RunValue:
+    if Verdict.NA in (mine.verdict, base.verdict):
+        return RunValue(mine.seed, math.nan, Verdict.NA, mine.reason or base.reason)
     if mine.verdict is Verdict.ERROR or base.verdict is Verdict.ERROR:
         return RunValue(mine.seed, math.nan, Verdict.ERROR, mine.reason or base.reason)
     if math.isnan(mine.value) or math.isnan(base.value):
@@ -205,4 +224,7 @@ def judge_case(case: TestCase, runs: list[RunResult], errors: list[str] | None =
     if out.errors or not runs:
         verdicts.append(Verdict.ERROR)
     out.verdict = worst(verdicts)
+    if out.verdict is Verdict.NA:  # no criterion applies: nothing was judged
+        out.errors.append("no criterion of the case applies to its runs (all N/A)")
+        out.verdict = Verdict.ERROR
     return out

@@ -82,11 +82,20 @@ class RealTimeClock(Clock):
         self._t0 = time.monotonic_ns()
         self._origin = int(origin_ns)
 
+    def anchor(self) -> dict[str, str]:
+        """Where bench time sits on the host's ``CLOCK_MONOTONIC`` (after :meth:`start`):
+        bench time ``origin_ns`` at monotonic ``monotonic_ns``, ``speed`` bench s per s."""
+        return {"origin_ns": str(self._origin), "monotonic_ns": str(self._t0), "speed": f"{self.speed!r}"}
+
     def _wall(self, t_ns: int) -> int:
         return self._t0 - (self._origin - t_ns) * self._den // self._num  # rounded up
 
     def now_ns(self) -> int:
         return self._origin + (time.monotonic_ns() - self._t0) * self._num // self._den  # rounded down
+
+    def at_monotonic(self, monotonic_ns: int) -> int:
+        """Bench time at the host's ``CLOCK_MONOTONIC`` instant ``monotonic_ns``."""
+        return self._origin + (monotonic_ns - self._t0) * self._num // self._den
 
     def wait_until(self, t_ns: int) -> int:
         due = self._wall(t_ns)

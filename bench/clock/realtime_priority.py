@@ -9,6 +9,11 @@ little, and the objects made before it are frozen out of later collections), and
 would. The policy needs root or ``CAP_SYS_NICE`` (or an ``rtprio`` limit); without them
 the run goes on under the normal policy and says so in its ``realtime_scheduling``
 metadata. ``BENCH_RT_PRIORITY=0`` turns it off.
+
+Every other thread of the process gets the same policy (threads started later inherit
+it): the emission loop needs the interpreter lock after each sleep, and a helper thread
+under the normal policy (a serial reader, the DUT's output readers) that holds the lock
+when an ordinary process preempts it would stop the loop for that process's time slice.
 """
 
 from __future__ import annotations
@@ -16,11 +21,13 @@ from __future__ import annotations
 import contextlib
 import gc
 import os
+import threading
 
 __all__ = ["acquire", "release", "DEFAULT_PRIORITY"]
 
 DEFAULT_PRIORITY = 50
 _saved: tuple[int, int] | None = None
+_saved_threads: dict[int, tuple[int, int]] = {}
 _gc_was_enabled: bool | None = None
 
 
@@ -43,7 +50,19 @@ def acquire(priority: int | None = None) -> dict[str, str]:
     except (PermissionError, OSError) as exc:
         _saved = None
         return {"policy": "normal", "reason": f"SCHED_FIFO not permitted: {exc}"}
-    return {"policy": "SCHED_FIFO", "priority": str(want)}
+    others = _other_threads()
+    for tid in others:
+        with contextlib.suppress(OSError):  # a thread that ended meanwhile
+            saved = (os.sched_getscheduler(tid), os.sched_getparam(tid).sched_priority)
+            os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(want))
+            _saved_threads[tid] = saved
+    return {"policy": "SCHED_FIFO", "priority": str(want), "threads": str(1 + len(_saved_threads))}
+
+
+def _other_threads() -> list[int]:
+    """Kernel ids of this process's other threads."""
+    me = threading.get_native_id()
+    return [t.native_id for t in threading.enumerate() if t.native_id is not None and t.native_id != me]
 
 
 def release() -> None:
@@ -54,6 +73,10 @@ def release() -> None:
         if _gc_was_enabled:
             gc.enable()
         _gc_was_enabled = None
+    for tid, (policy, prio) in list(_saved_threads.items()):
+        with contextlib.suppress(OSError):  # ended meanwhile
+            os.sched_setscheduler(tid, policy, os.sched_param(prio))
+    _saved_threads.clear()
     if _saved is None:
         return
     policy, prio = _saved

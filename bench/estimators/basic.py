@@ -67,6 +67,12 @@ class DecodeOnly(Estimator):
         self.received += inputs.count()
         if inputs.t_ns < self.next_ns:
             return EstimatorOutput()
+        if inputs.t_ns < self.next_ns + self.period_ns:  # one epoch (the usual step): no arrays to build
+            sol = np.zeros(1, NAV_SOLUTION_DTYPE)
+            sol["t_ns"], sol["mode"], sol["epoch"] = self.next_ns, MODE_ALIGNING, self.epoch
+            self.next_ns += self.period_ns
+            self.epoch = (self.epoch + 1) % 256
+            return EstimatorOutput(sol)
         times = np.arange(self.next_ns, inputs.t_ns + 1, self.period_ns, dtype=np.int64)
         self.next_ns = int(times[-1]) + self.period_ns
         sol = np.zeros(len(times), NAV_SOLUTION_DTYPE)

@@ -35,7 +35,7 @@ def _fmt(v: object) -> str:
 def junit_xml(cases: Sequence[CaseResult], name: str = "bench accept") -> ET.Element:
     """The ``<testsuites>`` element of an acceptance run."""
     root = ET.Element("testsuites", name=name)
-    totals = {"tests": 0, "failures": 0, "errors": 0}
+    totals = {"tests": 0, "failures": 0, "errors": 0, "skipped": 0}
     for cr in cases:
         suite = ET.SubElement(root, "testsuite", name=cr.case_id, file=cr.file)
         props = ET.SubElement(suite, "properties")
@@ -43,7 +43,7 @@ def junit_xml(cases: Sequence[CaseResult], name: str = "bench accept") -> ET.Ele
         ET.SubElement(props, "property", name="verdict", value=str(cr.verdict))
         for r in cr.requirements:
             ET.SubElement(props, "property", name="requirement", value=r)
-        n = {"tests": 0, "failures": 0, "errors": 0}
+        n = {"tests": 0, "failures": 0, "errors": 0, "skipped": 0}
         per = cr.elapsed_s / max(1, len(cr.criteria))
         for res in cr.criteria:
             j = criterion_json(res)
@@ -65,6 +65,9 @@ def junit_xml(cases: Sequence[CaseResult], name: str = "bench accept") -> ET.Ele
             elif res.verdict is Verdict.ERROR:
                 ET.SubElement(tc, "error", message=message, type="ERROR").text = message
                 n["errors"] += 1
+            elif res.verdict is Verdict.NA:  # not applicable to this run: neither passed nor failed
+                ET.SubElement(tc, "skipped", message=message, type="N/A").text = message
+                n["skipped"] += 1
             else:
                 ET.SubElement(tc, "system-out").text = message
         problems = list(cr.errors) + [

@@ -83,7 +83,7 @@ def reason_lines(cases: Sequence[CaseResult]) -> list[str]:
     out = []
     for cr in cases:
         for res in cr.criteria:
-            if res.aggregate.reason and res.verdict.value in ("FAIL", "ERROR"):
+            if res.aggregate.reason and res.verdict.value in ("FAIL", "ERROR", "N/A"):
                 label = res.criterion.id + (f"[{res.variant}]" if res.variant else "")
                 out.append(f"  {cr.case_id} {label}: {res.verdict}: {res.aggregate.reason}")
     return out

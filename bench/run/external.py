@@ -10,18 +10,20 @@ a JSON file (``{config}``), starts the command line, and then either
   <bench.transport.serial_link.SerialLink.deliver>`), sends the CAN frames due by ``T``
   (ending with BENCH_TIME(T), lockstep bit set) and waits for a DUT_READY >= ``T``,
   recording what the DUT sends meanwhile; or
-* **real time**: emits every frame and byte group at its time on the clock (bytes paced
-  at the line's baud), measuring the lateness of every emission, and records what
-  arrives with the bench time of its arrival.
+* **real time** (:mod:`bench.run.realtime_exchange`): waits until the DUT has opened its
+  pty lines, emits every frame and byte group at its time on the clock (bytes paced at
+  the line's baud), measuring the lateness of every emission and never waiting on the
+  DUT, while a receive thread stamps every DUT frame with the bench time of its arrival;
+  after the last emission it waits for the DUT's answer to the end of the run and
+  records everything received.
 
 A DUT that dies, does not answer, never starts, stops reading its serial lines, or
 floods the bus ends the run with a :class:`~bench.errors.DutError` naming what happened
 (with its exit status and last output lines when it died); shutdown always ends the
 whole process group. The DUT's standard output and error are recorded as they come
-(lockstep: after each step; real time: at the end of each window), and so are the bytes
+(lockstep: after each step; real time: after the last emission), and so are the bytes
 it writes on its serial lines, drained by a thread per line so that it never blocks
-(recorded after each step, in real time in the slack between emissions and at the end of
-each window, and at shutdown).
+(recorded after each step, in real time after the last emission, and at shutdown).
 """
 
 from __future__ import annotations
@@ -35,16 +37,18 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.clock.pacing import Clock, TimingLog
+from bench.clock.pacing import Clock
 from bench.dut.process import DutProcess, LogLine, describe_exit, fill_placeholders, uses_placeholder
 from bench.errors import ConfigError, DutError, LinkError
 from bench.frames import CanBatch, SerialBatch
-from bench.run.realtime_plan import EMIT_CAN, EMIT_IMU, RealtimePlan, plan_emissions
+from bench.run.realtime_exchange import RealtimeExchange
+from bench.run.realtime_plan import RealtimePlan
 from bench.run.spec import DutSpec, LinkSpec
 from bench.run.startup import REPEATED_IDS, advance_alive
 from bench.run.traffic import BENCH_TIME_ID, Traffic
 from bench.textsafe import for_terminal
 from bench.transport.can_link import CanConfig, CanLink, open_can_link
+from bench.transport.can_rx import CanReceiveThread
 from bench.transport.serial_link import SerialConfig, SerialLink, open_serial_link
 from bench.transport.serial_reader import SerialReader
 from bench.transport.udp import RUN_TAG_ENV, UdpMulticastCanLink
@@ -73,7 +77,7 @@ def can_config(table: dict, *, free_port: bool = False) -> CanConfig:
     return cfg
 
 
-class ExternalDut:
+class ExternalDut(RealtimeExchange):
     """A DUT on real links, started as a process unless ``spec.kind == "hardware"``.
 
     Parameters
@@ -105,7 +109,18 @@ class ExternalDut:
         self.on_lines = on_lines
         self.on_serial = on_serial
         self.readers: dict[str, SerialReader] = {}
-        self.now_ns = 0  # bench time stamped on received frames
+        self.now_ns = 0  # bench time stamped on received frames (lockstep)
+        self._rt_clock: Clock | None = None  # real time: the run's clock stamps them
+        self._rx: CanReceiveThread | None = None
+        self._rx_to: Callable[[CanBatch], None] | None = None
+        self._rt_offset = (1 << 62, 0)  # CLOCK_REALTIME minus CLOCK_MONOTONIC, ns, and when it was read
+        # real time: bytes a full pty line did not take yet, per emission kind, and since when
+        self._held: tuple[bytearray, bytearray, bytearray] = (bytearray(), bytearray(), bytearray())
+        self._held_since = [0.0, 0.0, 0.0]  # the last progress (a DUT that takes nothing for write_timeout stopped)
+        self._held_start = [0.0, 0.0, 0.0]
+        #: real time, per line: how often its DUT left it full, the most bytes held, the
+        #: longest time until it took them (the DUT's lag: the bench never waits on it)
+        self.held_stats: dict[str, dict] = {}
         self.ready_ns = -1  # latest DUT_READY time received
         self.process: DutProcess | None = None
         self._recent: list[LogLine] = []  # the last output lines, for error messages
@@ -116,11 +131,12 @@ class ExternalDut:
         self.gnss_baud = int(links.gnss.get("baud", 115_200))
         try:
             free = spec.kind == "external" and uses_placeholder(spec.command, "can_port")
-            self.can = open_can_link(can_config(links.can, free_port=free), clock=lambda: self.now_ns)
+            self.can = open_can_link(can_config(links.can, free_port=free), clock=self._bench_now)
+            self.can.arrival_clock = self._bench_at
             self.serial["imu"] = open_serial_link(serial_config(links.imu, "imu", 460_800))
             self.serial["gnss"] = open_serial_link(serial_config(links.gnss, "gnss", 115_200))
             for name, link in self.serial.items():
-                self.readers[name] = SerialReader(link, lambda: self.now_ns, name=name)
+                self.readers[name] = SerialReader(link, self._bench_now, name=name)
             if spec.kind == "external":
                 self._start()
         except BaseException:
@@ -333,87 +349,12 @@ class ExternalDut:
         k = self.can.remote + self.can.error_frames - since
         return f" ({k} of them remote or error frames)" if k else ""
 
-    # ------------------------------------------------------------------ real time
-    def plan_realtime(self, traffic: Traffic) -> RealtimePlan:
-        """Prepare one window's emissions before the clock starts (real time)."""
-        return plan_emissions(traffic, self.imu_baud, self.gnss_baud)
-
-    def exchange_realtime(
-        self,
-        plan: RealtimePlan,
-        clock: Clock,
-        timing: TimingLog,
-        end_ns: int,
-        received: Callable[[CanBatch], None],
-        idle: Callable[[int], None] | None = None,
-    ) -> None:
-        """Emit one window's traffic on the clock, receiving as it goes; ``idle(slack_ns)``
-        is called when the next emission is far enough away to do other work."""
-        flood = int(self.spec.flood_frames_per_s * max(1e-9 * (end_ns - self.now_ns), 0.01)) + 100
-        with self._dut_side():
-            self._emit(plan, clock, timing, end_ns, received, idle, flood)
-
-    def _emit(
-        self,
-        plan: RealtimePlan,
-        clock: Clock,
-        timing: TimingLog,
-        end_ns: int,
-        received: Callable[[CanBatch], None],
-        idle: Callable[[int], None] | None,
-        flood: int,
-    ) -> None:
-        assert self.can is not None
-        send_can, write_imu, write_gnss = self.can.send, self.serial["imu"].write, self.serial["gnss"].write
-        n0, odd0 = self.can.peer_frames, self.can.remote + self.can.error_frames  # every frame counts
-        k = 0
-        next_check = self.now_ns  # the DUT process is checked every 100 ms of bench time
-        times, kinds, index = plan.times, plan.kinds, plan.index
-        on_can, on_imu = EMIT_CAN, EMIT_IMU  # locals: no global lookups per emission
-        n = len(times)
-        while k < n:
-            t = times[k]
-            timing.add(t, clock.wait_until(t))
-            while k < n and times[k] == t:
-                kind, i = kinds[k], index[k]
-                if kind == on_can:
-                    send_can(plan.can[i])
-                elif kind == on_imu:
-                    write_imu(plan.imu[i])
-                else:
-                    write_gnss(plan.gnss[i])
-                k += 1
-            self.now_ns = clock.now_ns()
-            got = self.can.drain(timeout=0.0)
-            if len(got):
-                received(got)
-            if self.can.peer_frames - n0 > flood:
-                self._flush_lines()
-                raise DutError(
-                    f"the DUT floods the bus: {self.can.peer_frames - n0} frames{self._odd_frames(odd0)} "
-                    f"in one window (limit {flood})"
-                )
-            if idle is not None and k < n:
-                slack = times[k] - clock.now_ns()
-                if slack > 5_000_000:
-                    self._flush_serial()
-                    idle(slack)
-            if self.now_ns >= next_check:  # a few microseconds every 100 ms, late or not
-                next_check = self.now_ns + 100_000_000
-                self._check_process()
-        clock.wait_until(end_ns)
-        self.now_ns = clock.now_ns()
-        got = self.can.drain(timeout=0.0)
-        if len(got):
-            received(got)
-        self._check_process()
-        self._flush_lines()
-
     # ------------------------------------------------------------------ end
     def close(self) -> dict:
         """Stop the process and close the links (idempotent); returns exit facts."""
         facts: dict = {}
         try:
+            self._stop_receiving(check=False)  # a real-time run that stopped early: what came before
             if self.process is not None:
                 p = self.process
                 try:
@@ -435,6 +376,8 @@ class ExternalDut:
             try:
                 self._flush_serial(final=True)
             finally:
+                if self.held_stats:
+                    facts["serial_held"] = self.held_stats
                 rx = {name: r.bytes_read for name, r in self.readers.items() if r.bytes_read}
                 if rx:
                     facts["serial_rx_bytes"] = rx

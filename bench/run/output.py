@@ -94,11 +94,18 @@ class DutOutputRecorder:
         self._record(frames)
 
     def process(self, max_batches: int | None = None) -> None:
-        """Decode and record deferred frames (all, or the first ``max_batches`` batches)."""
+        """Decode and record deferred frames (all, or the first ``max_batches`` batches).
+
+        With no ``max_batches`` this is the end of the DUT's output: the qualities still
+        waiting for their solutions are counted unpaired
+        (:meth:`~bench.wire.receive.NavReceiver.finish`)."""
         n = len(self._pending) if max_batches is None else min(max_batches, len(self._pending))
         if n:
             batch, self._pending = self._pending[:n], self._pending[n:]
             self._record(CanBatch.concat(batch))
+        if max_batches is None:
+            self.receiver.finish()
+            self.write_bad()
 
     def _record(self, frames: CanBatch) -> None:
         write_can(self.rec, CAN_RX, frames)

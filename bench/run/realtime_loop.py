@@ -3,8 +3,13 @@ the clock starts, then every emission at its time on the clock, the DUT's frames
 received as they come, the lateness of each emission measured, and the run's budget
 checked at the end.
 
-The emission loop does nothing but wait and send; the DUT's frames are decoded and
-recorded when there is slack, and at the end.
+The emission loop does nothing but wait and send: an external DUT's frames are stamped
+on arrival by a receive thread and decoded and recorded after the last emission
+(:meth:`ExternalDut.end_realtime <bench.run.external.ExternalDut.end_realtime>`, which
+also waits for the DUT's answer to the end of the run); nothing is written to the
+recording while the clock runs. The clock's anchor (bench time at a ``CLOCK_MONOTONIC``
+instant) is recorded as ``realtime_clock`` metadata, so stamps taken by another process
+on the same host can be put on the bench's time axis.
 """
 
 from __future__ import annotations
@@ -12,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from bench.clock import realtime_priority
-from bench.clock.pacing import TimingLog
+from bench.clock.pacing import RealTimeClock, TimingLog
 from bench.run.result import TimingBudgetError
 from bench.run.session import RunSession
 from bench.run.traffic import Traffic
@@ -24,23 +29,30 @@ def run_realtime(s: RunSession) -> None:
     """Run every window of ``s`` in real time, then check the timing budget."""
     out = s.out
     assert out is not None
+    ext = s.dut_ext
     plans = []
     for t0, t1 in s.windows:
         traffic, step_times = s.prepare(t0, t1)
-        if s.dut_ext is not None:
-            plans.append((t0, t1, s.dut_ext.plan_realtime(traffic), step_times))
+        if ext is not None:
+            plans.append((t0, t1, ext.plan_realtime(traffic), step_times))
         else:
             plans.append((t0, t1, steps_of(traffic, step_times), step_times))
-    if s.dut_ext is not None:
-        s.dut_ext.start(None, out.feed)
-    out.deferred = True
-    idle = lambda slack: out.process(4)  # noqa: E731 - a few batches per slack moment
+    if ext is not None:
+        ext.start(None, out.feed)
+        waited = ext.await_listening()
+        s.rec.metadata("realtime_start", {"waited_for_dut_s": f"{waited:.3f}"})
+    else:
+        out.deferred = True  # the in-process DUT's output is recorded after the loop
     s.rec.metadata("realtime_scheduling", realtime_priority.acquire())
     clock, timing = s.clock, s.timing
     clock.start(s.start_ns)
+    if isinstance(clock, RealTimeClock):
+        s.rec.metadata("realtime_clock", clock.anchor())
+    if ext is not None:
+        ext.begin_realtime(clock, out.feed)
     for t0, t1, plan, step_times in plans:
-        if s.dut_ext is not None:
-            s.dut_ext.exchange_realtime(plan, clock, timing, t1, out.feed, idle)
+        if ext is not None:
+            ext.exchange_realtime(plan, clock, timing, t1)
         else:
             assert s.dut_in is not None
             for k, part in enumerate(plan):
@@ -49,6 +61,8 @@ def run_realtime(s: RunSession) -> None:
                 lo = int(step_times[k - 1]) + 1 if k else t0
                 out.feed(s.dut_in.exchange(part, step_times[k : k + 1], lo))
         s.report(t1)
+    if ext is not None:
+        ext.end_realtime(s.windows[-1][1] if s.windows else s.start_ns)
     realtime_priority.release()
     out.deferred = False
     out.process()

@@ -27,9 +27,11 @@ returned, but they are counted (``remote``, ``error_frames``) and, like every fr
 peer sends, in :attr:`CanLink.peer_frames`, which a flood limit is checked against.
 
 Time stamps: a sent frame's ``t_ns`` (bench time) goes out as the message timestamp in
-seconds. A received frame gets ``t_ns`` from the link's ``clock`` (bench time now) when
-one is given, else the message timestamp converted to ns (the sender's bench time on
-``virtual``, the host clock of the receiving socket on real interfaces).
+seconds. A received frame gets ``t_ns`` from the link's ``arrival_clock`` applied to the
+kernel's arrival time where the link knows it (udp_multicast: ``SO_TIMESTAMPNS``), else
+from its ``clock`` (bench time now) when one is given, else the message timestamp
+converted to ns (the sender's bench time on ``virtual``, the host clock of the receiving
+socket on real interfaces).
 """
 
 from __future__ import annotations
@@ -46,7 +48,14 @@ import can
 from bench.errors import ConfigError, LinkError
 from bench.frames import CanBatch, CanFrame
 
-__all__ = ["CanConfig", "CanLink", "open_can_link", "socketcan_unavailable", "VCAN_SETUP", "SKIPPED"]
+__all__ = [
+    "CanConfig",
+    "CanLink",
+    "open_can_link",
+    "socketcan_unavailable",
+    "VCAN_SETUP",
+    "SKIPPED",
+]
 
 #: The one-time setup of a virtual SocketCAN interface (as root).
 VCAN_SETUP = "ip link add dev {ch} type vcan; ip link set up {ch}"
@@ -181,6 +190,10 @@ class CanLink:
         self.error_frames = 0
         #: Every frame a peer sent that reached this link: data, remote and error frames.
         self.peer_frames = 0
+        #: Maps the kernel's arrival time of a frame (CLOCK_REALTIME ns, where the link knows
+        #: it: udp_multicast) to bench time; used instead of ``clock`` when set.
+        self.arrival_clock: Callable[[int], int] | None = None
+        self._arrival_ns: int | None = None
         self._closed = True  # until the bus is open
         if self.config.interface == "socketcan":
             reason = socketcan_unavailable(str(self.config.resolved_channel))
@@ -222,7 +235,11 @@ class CanLink:
         if msg.is_remote_frame:
             self.remote += 1
             return None
-        t_ns = self.clock() if self.clock is not None else round(msg.timestamp * 1e9)
+        arrival, self._arrival_ns = self._arrival_ns, None
+        if arrival is not None and self.arrival_clock is not None:
+            t_ns = self.arrival_clock(arrival)
+        else:
+            t_ns = self.clock() if self.clock is not None else round(msg.timestamp * 1e9)
         return CanFrame(int(t_ns), int(msg.arbitration_id), bytes(msg.data), bool(msg.is_fd))
 
     # ---------------------------------------------------------------- traffic

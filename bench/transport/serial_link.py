@@ -141,6 +141,12 @@ class SerialLink:
             self._write(bytes(data), self.config.write_timeout)
             self.bytes_written += len(data)
 
+    def write_some(self, data: bytes) -> int:
+        """Write what the line takes now, without waiting; returns the bytes taken (a pty
+        whose far end does not read takes fewer; other links take everything)."""
+        self.write(data)
+        return len(data)
+
     def write_many(self, chunks: SerialBatch | Iterable[SerialChunk]) -> int:
         """Write every chunk in one call; returns the number of bytes."""
         data = chunks.tobytes() if isinstance(chunks, SerialBatch) else b"".join(c.data for c in chunks)
@@ -289,6 +295,19 @@ class PtyLink(SerialLink):
 
     def fileno(self) -> int | None:
         return None if self._closed else self.pair.master_fd
+
+    def write_some(self, data: bytes) -> int:
+        if self._closed:
+            raise LinkError(f"{self!r} is closed")
+        try:
+            n = os.write(self.pair.master_fd, data) if data else 0
+        except BlockingIOError:
+            return 0
+        except OSError as exc:
+            raise LinkError(f"{self!r}: write failed: {exc}") from exc
+        self._undelivered += n
+        self.bytes_written += n
+        return n
 
     def _write(self, data: bytes, timeout: float) -> None:
         view = memoryview(data)

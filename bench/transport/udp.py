@@ -49,6 +49,7 @@ import os
 import secrets
 import select
 import socket
+import struct
 import time
 from collections.abc import Callable, Mapping
 from typing import Any
@@ -81,6 +82,7 @@ UDP_OPTIONS = ("port", "interface_address", "hop_limit")
 _SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33)
 _IP_MULTICAST_ALL = getattr(socket, "IP_MULTICAST_ALL", 49)  # Linux
 _MAX_DATAGRAM = 4096  # a packed CAN FD message is about 200 bytes
+_SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)  # Linux: the kernel's arrival time of each datagram
 
 
 def check_udp_config(channel: Any, options: Mapping[str, Any], *, file: str | None = None, key: str = "can") -> None:
@@ -151,6 +153,13 @@ class _MulticastSocket:
             sock.close()
             raise
         self.sock = sock
+        #: CLOCK_REALTIME ns at which the kernel received the last datagram read (None: unknown)
+        self.arrival_ns: int | None = None
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
+            self._stamped = True
+        except OSError:
+            self._stamped = False
         self.port = int(sock.getsockname()[1])
         self._dest = (group, self.port)
         self._poll = select.poll()  # not select(): any descriptor number
@@ -173,9 +182,17 @@ class _MulticastSocket:
         if timeout != 0.0 and not self._poll.poll(None if timeout is None else timeout * 1e3):
             return None
         try:
-            return self.sock.recv(_MAX_DATAGRAM, socket.MSG_DONTWAIT)
+            if not self._stamped:
+                return self.sock.recv(_MAX_DATAGRAM, socket.MSG_DONTWAIT)
+            data, anc, _, _ = self.sock.recvmsg(_MAX_DATAGRAM, 64, socket.MSG_DONTWAIT)
         except BlockingIOError:
             return None
+        self.arrival_ns = None
+        for level, kind, cdata in anc:
+            if level == socket.SOL_SOCKET and kind == _SO_TIMESTAMPNS and len(cdata) >= 16:
+                sec, nsec = struct.unpack("qq", cdata[:16])
+                self.arrival_ns = sec * 1_000_000_000 + nsec
+        return data
 
     def shutdown(self) -> None:
         self.sock.close()
@@ -276,7 +293,9 @@ class UdpMulticastCanLink(CanLink):
         except Exception:  # stray bytes: anything msgpack or can.Message refuses
             self.foreign += 1
             return SKIPPED
-        msg.timestamp = time.time()  # arrival (python-can stamps it with the host clock too)
+        arrival = self.bus.arrival_ns
+        self._arrival_ns = arrival  # the kernel's arrival time (CLOCK_REALTIME), for arrival_clock
+        msg.timestamp = (arrival if arrival is not None else time.time_ns()) * 1e-9  # as python-can stamps it
         return msg
 
     def _to_message(self, t_ns: int, can_id: int, data: bytes, fd: bool) -> can.Message:

@@ -13,6 +13,7 @@ allowed values); on the good frames, per message, the sequence labels of
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,7 +31,10 @@ DUT_OUTPUT_MESSAGES = ("NAV_SOLUTION", "NAV_QUALITY", "DUT_READY")
 #: What the bench sends (ICD 2.1).
 BENCH_MESSAGES = ("BENCH_TIME", "BENCH_EPOCH", "BENCH_CMD", "ODOMETER", "DRIVER_INPUT", "DOPPLER")
 _KEEP_PER_KIND = 64  # sequence-labelled frames kept per kind and batch (all are counted)
-_RECENT = 1024  # NAV_SOLUTIONs remembered for pairing NAV_QUALITY frames
+#: How far (time of validity) a NAV_QUALITY and its NAV_SOLUTION may be apart in what
+#: has arrived: much longer than any sane DUT latency.
+PAIR_WINDOW_NS = 10_000_000_000
+_MAX_KEPT = 1 << 18  # solutions kept for pairing at most (a DUT whose times of validity jump around)
 
 
 class _CanReceiver:
@@ -101,17 +105,25 @@ class NavReceiver(_CanReceiver):
 
     Counter anomalies (epoch or alive counter repeated or skipped) count as ``counter``
     (frames still handed on), exact duplicates as ``duplicate`` (dropped), epochs lost as
-    ``lost``; a NAV_QUALITY whose epoch counter and time match no NAV_SOLUTION received
-    as ``pairing`` (the solution must have arrived before its quality, among the last
-    1024 solutions). Any other identifier is ``unknown_id``.
+    ``lost``; a NAV_QUALITY whose epoch counter and time of validity match no NAV_SOLUTION
+    as ``pairing``. Any other identifier is ``unknown_id``.
+
+    Pairing is by time of validity and epoch over the whole run, in arrival order and
+    whichever of the two frames comes first: a quality pairs with a solution of the same
+    key as long as, when the later of the two arrives, no solution more than
+    :data:`PAIR_WINDOW_NS` newer (time of validity) has arrived. So memory stays bounded
+    (the solutions and waiting qualities of the last 10 s of validity), a DUT that sends a
+    burst of solutions before their qualities pairs, and how the frames are cut into
+    batches never changes the result. A quality still waiting for its solution is counted
+    when a solution 10 s newer arrives, or at :meth:`finish` (the end of the run).
     """
 
     def __init__(self, tally: Tally | None = None):
         super().__init__(DUT_OUTPUT_MESSAGES, tally)
-        self._recent_t = np.zeros(0, np.int64)  # times of validity of the last NAV_SOLUTIONs
-        self._recent_epoch = np.zeros(0, np.int64)
-        self._recent_seq = np.zeros(0, np.int64)  # their numbers in arrival order
-        self._n_solutions = 0
+        self._solutions: dict[tuple[int, int], int] = {}  # (t_ns, epoch) -> t_ns, within the window
+        self._waiting: dict[tuple[int, int], list[tuple[int, int]]] = {}  # qualities: key -> [(rx_ns, epoch)]
+        self._arrived: deque[tuple[int, tuple[int, int]]] = deque()  # (t_ns, key) in arrival order, to prune
+        self._newest = -(1 << 62)  # the newest time of validity among the solutions arrived
 
     def _label_kind(self, code: int) -> str:
         return "counter" if code in (SEQ_REPEAT, SEQ_SKIP) else SEQ_KINDS[code]
@@ -139,40 +151,63 @@ class NavReceiver(_CanReceiver):
                 out.qualities, q_rows = self._records(NAV_QUALITY_DTYPE, values, rx), rows[keep]
             else:
                 out.ready_ns, out.ready_rx_ns = values["time_ns"], rx
-        paired = self._pair(out.solutions, sol_rows, out.qualities, q_rows)
-        for i in np.flatnonzero(~paired).tolist():
-            q = out.qualities[i]
-            self.tally.reject(
-                int(q["rx_ns"]),
-                "can:NAV_QUALITY",
-                "pairing",
-                b"",
-                f"epoch {int(q['epoch'])} at {int(q['t_ns'])} ns matches no NAV_SOLUTION",
-            )
+        self._pair(out.solutions, sol_rows, out.qualities, q_rows)
         return out
 
-    def _pair(self, sols: np.ndarray, sol_rows: np.ndarray, quals: np.ndarray, q_rows: np.ndarray) -> np.ndarray:
-        """(Q,) bool: each NAV_QUALITY has a NAV_SOLUTION of the same time and epoch among the
-        last ``_RECENT`` received before it (in arrival order, so batches cut anywhere agree)."""
-        base = self._n_solutions
-        t_all = np.concatenate([self._recent_t, sols["t_ns"]])
-        ep_all = np.concatenate([self._recent_epoch, sols["epoch"].astype(np.int64)])
-        seq_all = np.concatenate([self._recent_seq, base + np.arange(sols.size, dtype=np.int64)])
-        paired = np.zeros(quals.size, bool)
-        if quals.size and t_all.size:
-            keys = np.zeros(t_all.size + quals.size, [("t", "<i8"), ("e", "<i8")])
-            keys["t"] = np.concatenate([t_all, quals["t_ns"]])
-            keys["e"] = np.concatenate([ep_all, quals["epoch"].astype(np.int64)])
-            label = np.unique(keys, return_inverse=True)[1].reshape(-1).astype(np.int64)
-            ls, lq = label[: t_all.size], label[t_all.size :]
-            before = base + np.searchsorted(sol_rows, q_rows)  # solutions received before each quality
-            comp = np.sort((ls << 40) | seq_all)
-            j = np.searchsorted(comp, (lq << 40) | before) - 1
-            cand = comp[np.maximum(j, 0)]
-            paired = (j >= 0) & ((cand >> 40) == lq) & ((cand & ((1 << 40) - 1)) >= before - _RECENT)
-        self._n_solutions += sols.size
-        self._recent_t, self._recent_epoch, self._recent_seq = t_all[-_RECENT:], ep_all[-_RECENT:], seq_all[-_RECENT:]
-        return paired
+    def _unpaired(self, key: tuple[int, int], rx_ns: int, epoch: int) -> None:
+        self.tally.reject(
+            rx_ns, "can:NAV_QUALITY", "pairing", b"", f"epoch {epoch} at {key[0]} ns matches no NAV_SOLUTION"
+        )
+
+    def _pair(self, sols: np.ndarray, sol_rows: np.ndarray, quals: np.ndarray, q_rows: np.ndarray) -> None:
+        """Pair the batch's qualities and solutions in arrival order (see the class docstring)."""
+        if sols.size == 0 and quals.size == 0:
+            return
+        window = PAIR_WINDOW_NS
+        store, waiting, arrived = self._solutions, self._waiting, self._arrived
+        st, se = sols["t_ns"].tolist(), sols["epoch"].tolist()
+        qt, qe, qrx = quals["t_ns"].tolist(), quals["epoch"].tolist(), quals["rx_ns"].tolist()
+        rows = np.concatenate([sol_rows, q_rows])
+        order = np.argsort(rows, kind="stable").tolist()
+        n_sol = len(st)
+        newest = self._newest
+        for k in order:
+            if k < n_sol:
+                t = st[k]
+                key = (t, se[k])
+                newest = max(newest, t)
+                store[key] = t
+                arrived.append((t, key))
+                if key in waiting and newest <= t + window:
+                    del waiting[key]  # every quality that waited for it pairs
+            else:
+                i = k - n_sol
+                t = qt[i]
+                key = (t, qe[i])
+                if key in store and newest <= t + window:
+                    continue
+                waiting.setdefault(key, []).append((qrx[i], qe[i]))
+        self._newest = newest
+        limit = newest - window  # nothing older can pair any more
+        if waiting:
+            for key in [k for k in waiting if k[0] < limit]:
+                for rx, ep in waiting.pop(key):
+                    self._unpaired(key, rx, ep)
+        while arrived and arrived[0][0] < limit:
+            store.pop(arrived.popleft()[1], None)
+        if len(arrived) > 4 * _MAX_KEPT:  # times of validity out of order: keep the newest
+            keep = sorted(arrived)[-_MAX_KEPT:]
+            arrived.clear()
+            arrived.extend(keep)
+            self._solutions = store = {key: t for t, key in keep}
+
+    def finish(self) -> None:
+        """The end of the run: every quality still waiting for its solution is counted
+        (``pairing``); idempotent."""
+        waiting, self._waiting = self._waiting, {}
+        for key, items in waiting.items():
+            for rx, ep in items:
+                self._unpaired(key, rx, ep)
 
 
 class BenchTrafficDecoder(_CanReceiver):

@@ -178,16 +178,49 @@ def test_after_any_garbage_clean_traffic_decodes_exactly(frames):
             np.testing.assert_array_equal(got[name][k], v)
 
 
-def test_a_quality_before_its_solution_is_unpaired_however_the_frames_are_batched():
-    """Pairing follows arrival order: a NAV_QUALITY pairs with a NAV_SOLUTION received
-    before it. (Before, the same two frames paired in one batch and not in two.)"""
+def test_a_quality_before_its_solution_pairs_however_the_frames_are_batched():
+    """Pairing is by time of validity and epoch, whichever frame comes first, and the cut
+    into batches never changes it; a quality whose solution never comes is counted at the
+    end. (Before, a quality pairing only with a solution received before it, among the
+    last 1024, made a DUT that sends a burst of solutions before their qualities fail.)"""
     clean = _clean()
-    sol, qual = np.flatnonzero(clean.can_id == 0x300)[:3], np.flatnonzero(clean.can_id == 0x301)[:3]
-    order = np.array([sol[0], qual[0], qual[1], sol[1], sol[2], qual[2]])  # epoch 1's quality comes early
-    batch = clean.take(order)
-    counts = []
+    sol, qual = np.flatnonzero(clean.can_id == 0x300)[:4], np.flatnonzero(clean.can_id == 0x301)[:4]
+    order = np.array([sol[0], qual[0], qual[1], sol[1], sol[2], qual[2], qual[3]])  # epoch 1's quality comes early
+    batch = clean.take(order)  # epoch 3's solution never comes
     for cuts in (None, [1], [2], [3]):
         rx = NavReceiver()
         _run(rx, batch, cuts)
-        counts.append(rx.tally.as_dict())
-    assert all(c == {"pairing": 1} for c in counts), counts
+        assert rx.tally.as_dict() == {}, cuts
+        rx.finish()
+        assert rx.tally.as_dict() == {"pairing": 1}, cuts
+        assert [b.reason for b in rx.tally.bad] == [f"epoch 20 at {clean.t_ns[qual[3]]} ns matches no NAV_SOLUTION"]
+
+
+def test_pairing_holds_over_a_burst_longer_than_any_count_and_expires_by_time():
+    """2000 solutions, then their 2000 qualities (a DUT that fell behind and catches up):
+    all pair. A quality whose solution is more than PAIR_WINDOW_NS older than the newest
+    solution when it arrives does not, and is counted without waiting for the end."""
+    from bench.wire.receive import PAIR_WINDOW_NS
+
+    n = 2000
+    t = (np.arange(n) + 1) * 5_000_000
+    sol = np.zeros(n, NAV_SOLUTION_DTYPE)
+    sol["t_ns"], sol["rx_ns"], sol["epoch"], sol["lat"] = t, t, np.arange(n) % 256, 0.6
+    q = np.zeros(n, NAV_QUALITY_DTYPE)
+    q["t_ns"], q["rx_ns"], q["epoch"], q["sigma_pos"] = t, t, np.arange(n) % 256, 0.5
+    enc = CanEncoder()
+    burst = CanBatch.concat([enc.encode_records("NAV_SOLUTION", sol), enc.encode_records("NAV_QUALITY", q)])
+    for cuts in (None, [7], [500]):
+        rx = NavReceiver()
+        _run(rx, burst, cuts)
+        rx.finish()
+        assert rx.tally.as_dict() == {}, cuts
+    late = np.zeros(1, NAV_SOLUTION_DTYPE)
+    late["t_ns"] = late["rx_ns"] = t[-1] + PAIR_WINDOW_NS + 1
+    late["epoch"] = n % 256
+    late_q = q[:1].copy()  # the first epoch's quality once more, after a solution 10 s newer
+    rx = NavReceiver()
+    rx.feed(burst.take(np.arange(n)))  # the solutions only
+    rx.feed(enc.encode_records("NAV_SOLUTION", late))
+    rx.feed(CanEncoder().encode_records("NAV_QUALITY", late_q))
+    assert rx.tally["pairing"] == 1

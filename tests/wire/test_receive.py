@@ -85,6 +85,8 @@ def test_every_bad_frame_is_counted_by_kind_and_kept():
     del frames[i_sol[30]]  # epoch 30 missing: counter skip, 1 lost; its quality has no solution: pairing
     rx = NavReceiver()
     out = rx.feed(CanBatch.from_frames(frames + bad).sorted())
+    assert "pairing" not in rx.tally.as_dict()  # the qualities may still get their solutions
+    rx.finish()  # the end of the run: they never came
     # the rejected frames are gone: NAV_SOLUTION epochs 3, 10, 30 and NAV_QUALITY epoch 20 count as lost
     assert rx.tally.as_dict() == {"crc": 1, "length": 2, "unknown_id": 2, "counter": 4, "lost": 4, "pairing": 3}
     kinds = sorted(b.kind for b in rx.tally.bad)

@@ -1,0 +1,266 @@
+"""The real-time side of the external DUT adapter (:class:`~bench.run.external.ExternalDut`
+inherits it): emission on the clock, receiving on arrival, the end of the run.
+
+* **Before the clock starts** (:meth:`RealtimeExchange.await_listening`): the DUT has
+  opened the slave end of every pty line (its process group holds it open, seen in
+  ``/proc``), within the start-up timeout. Until then nobody reads those lines, the
+  first emissions fill the ptys and the bench's writes would wait for the DUT.
+* **Emission** (:meth:`RealtimeExchange.exchange_realtime`): every frame and byte group
+  at its time on the clock; the loop waits, sends and measures the lateness, and does
+  nothing else but a flood check per emission and a look at the DUT process every 100 ms
+  of bench time. It never waits on the DUT: bytes a full pty does not take (a DUT that
+  lags) are kept, in order, and written as the DUT takes them; a line that takes nothing
+  for its ``write_timeout`` is a DUT that stopped reading. How often and how long each
+  line was held is in ``dut_exit`` (``serial_held``).
+* **Receiving** (:class:`~bench.transport.can_link.CanReceiveThread`): every DUT frame is
+  stamped with the bench time it arrives at by a thread, whatever the emission loop is
+  doing; nothing is decoded or recorded while the clock runs.
+* **The end** (:meth:`RealtimeExchange.end_realtime`): after the last emission the bench
+  keeps receiving until the DUT's answer to the end of the run has come (a NAV_SOLUTION
+  valid at the run's end or later), at most :data:`LINGER_S`, then hands everything
+  received over to be decoded and recorded.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from bench.clock.pacing import Clock, RealTimeClock, TimingLog
+from bench.errors import DutError, LinkError
+from bench.frames import CanBatch
+from bench.run.realtime_plan import EMIT_CAN, EMIT_GNSS, EMIT_IMU, RealtimePlan, plan_emissions
+from bench.run.traffic import Traffic
+from bench.transport.can_rx import CanReceiveThread
+from bench.wire.can import codec
+
+__all__ = ["RealtimeExchange", "LINGER_S"]
+
+_SOLUTION = codec("NAV_SOLUTION")
+#: Real time: how long (wall seconds) the bench waits after its last emission for the
+#: DUT's answer to the end of the run.
+LINGER_S = 2.0
+
+
+def _opened_by_group(pgid: int, paths: set[str]) -> set[str]:
+    """Which of ``paths`` a process of process group ``pgid`` holds open (Linux ``/proc``)."""
+    found: set[str] = set()
+    for entry in os.scandir("/proc"):
+        if not entry.name.isdigit():
+            continue
+        try:
+            if os.getpgid(int(entry.name)) != pgid:
+                continue
+            for fd in os.scandir(f"/proc/{entry.name}/fd"):
+                with contextlib.suppress(OSError):
+                    target = os.readlink(fd.path)
+                    if target in paths:
+                        found.add(target)
+        except OSError:  # gone meanwhile, or not ours to look at
+            continue
+    return found
+
+
+
+class RealtimeExchange:
+    """The real-time methods of :class:`~bench.run.external.ExternalDut` (see the module
+    docstring); the attributes they use are set up there."""
+
+    def _bench_now(self) -> int:
+        """Bench time now: the run's clock in real time, the step reached in lockstep."""
+        clock = self._rt_clock
+        return clock.now_ns() if clock is not None else self.now_ns
+
+    def _bench_at(self, realtime_ns: int) -> int:
+        """Bench time of an arrival the kernel stamped (CLOCK_REALTIME ns), so the stamp does
+        not depend on when the receive thread got to run; in lockstep the step reached.
+
+        The realtime clock's offset to the monotonic one is the smallest of the paired reads
+        (monotonic first: a pause between the two reads only makes a pair larger) over the
+        last second, so neither a pause nor the host clock's slewing moves the stamp."""
+        clock = self._rt_clock
+        if not isinstance(clock, RealTimeClock):
+            return self._bench_now()
+        mono = time.monotonic_ns()
+        off = time.time_ns() - mono
+        best, since = self._rt_offset
+        if off <= best or mono - since > 1_000_000_000:
+            best, since = off, mono
+            self._rt_offset = (best, since)
+        arrival = realtime_ns - best
+        if not mono - 1_000_000_000 < arrival <= mono:  # the host clock stepped meanwhile: now is all we know
+            arrival = mono
+        return clock.at_monotonic(arrival)
+
+    def plan_realtime(self, traffic: Traffic) -> RealtimePlan:
+        """Prepare one window's emissions before the clock starts (real time)."""
+        return plan_emissions(traffic, self.imu_baud, self.gnss_baud)
+
+    def await_listening(self, poll_s: float = 0.01) -> float:
+        """Real time, before the clock starts: wait until the DUT process (any process of
+        its group) has opened the slave end of every pty line, within the start-up timeout
+        (ICD 5: listening within 5 s); returns the seconds waited. Until it has, nobody
+        reads those lines: the first emissions would fill the pty and the bench's writes
+        would block for as long as the DUT takes to start (measured: 100-800 ms stalls of
+        the emission loop at the start of a run). Lines that are no ptys, hardware DUTs and
+        hosts without ``/proc`` are not waited for."""
+        ptys = {os.path.realpath(link.dut_port) for link in self.serial.values() if link.dut_port}
+        if self.process is None or not ptys or not Path("/proc/self/fd").is_dir():
+            return 0.0
+        t0 = time.monotonic()
+        deadline = t0 + self.spec.startup_timeout_s
+        pgid = self.process.pid  # the DUT leads its own session and group
+        while True:
+            missing = ptys - _opened_by_group(pgid, ptys)
+            if not missing:
+                return time.monotonic() - t0
+            self._check_process("during start-up")
+            if time.monotonic() > deadline:
+                raise DutError(
+                    f"the DUT did not open {', '.join(sorted(missing))} within {self.spec.startup_timeout_s:g} s "
+                    "of its start (ICD 5: listening within 5 s)" + self._tail()
+                )
+            time.sleep(poll_s)
+
+    def begin_realtime(self, clock: Clock, received: Callable[[CanBatch], None]) -> None:
+        """The clock has started: from now on every frame the DUT sends is stamped with the
+        bench time it arrives at, by a thread, and handed to ``received`` after the last
+        emission (:meth:`end_realtime`), or at :meth:`close` if the run stopped before."""
+        assert self.can is not None
+        self._rt_clock = clock
+        self._rx_to = received
+        self._rx = CanReceiveThread(self.can)
+
+    def exchange_realtime(self, plan: RealtimePlan, clock: Clock, timing: TimingLog, end_ns: int) -> None:
+        """Emit one window's traffic on the clock (after :meth:`begin_realtime`): wait,
+        send, measure the lateness; nothing else but a flood check per emission and a look
+        at the DUT process every 100 ms of bench time."""
+        flood = int(self.spec.flood_frames_per_s * max(1e-9 * (end_ns - self.now_ns), 0.01)) + 100
+        with self._dut_side():
+            self._emit(plan, clock, timing, flood)
+        self.now_ns = end_ns
+
+    def _emit(self, plan: RealtimePlan, clock: Clock, timing: TimingLog, flood: int) -> None:
+        assert self.can is not None and self._rx is not None
+        can, rx = self.can, self._rx
+        send_can = can.send
+        writes = (None, self.serial["imu"].write_some, self.serial["gnss"].write_some)
+        held = self._held
+        n0, odd0 = can.peer_frames, can.remote + can.error_frames  # every frame counts
+        k = 0
+        next_check = self.now_ns  # the DUT process is checked every 100 ms of bench time
+        times, kinds, index = plan.times, plan.kinds, plan.index
+        payloads = (plan.can, plan.imu, plan.gnss)
+        on_can = EMIT_CAN  # locals: no global lookups per emission
+        wait_until, add = clock.wait_until, timing.add
+        n = len(times)
+        while k < n:
+            t = times[k]
+            add(t, wait_until(t))
+            while k < n and times[k] == t:
+                kind = kinds[k]
+                data = payloads[kind][index[k]]
+                if kind == on_can:
+                    send_can(data)
+                elif held[kind]:  # the DUT has not taken the line's earlier bytes yet: after them
+                    held[kind].extend(data)
+                else:
+                    m = writes[kind](data)  # never waits
+                    if m < len(data):
+                        self._hold(kind, data[m:])
+                k += 1
+            if held[1] or held[2]:
+                self._retry_held()
+            if can.peer_frames - n0 > flood or rx.full:
+                self.now_ns = t
+                self._flush_lines()
+                raise DutError(
+                    f"the DUT floods the bus: {can.peer_frames - n0} frames{self._odd_frames(odd0)} "
+                    f"in one window (limit {flood})"
+                )
+            if t >= next_check:  # a few microseconds every 100 ms, late or not
+                next_check = t + 100_000_000
+                self.now_ns = t
+                self._check_process()
+                if rx.error is not None:
+                    raise LinkError(f"receiving from the DUT failed: {rx.error}") from rx.error
+
+    def _hold(self, kind: int, rest: bytes) -> None:
+        """A pty line is full (its DUT has not read): keep the bytes, in order, for later."""
+        name = "imu" if kind == EMIT_IMU else "gnss"
+        self._held[kind].extend(rest)
+        self._held_since[kind] = self._held_start[kind] = time.monotonic()
+        st = self.held_stats.setdefault(name, {"episodes": 0, "max_bytes": 0, "longest_s": 0.0})
+        st["episodes"] += 1
+
+    def _retry_held(self) -> None:
+        """Write what the full lines take now; a line whose DUT takes nothing for its
+        ``write_timeout`` is a DUT that stopped reading."""
+        now = time.monotonic()
+        for kind in (EMIT_IMU, EMIT_GNSS):
+            buf = self._held[kind]
+            if not buf:
+                continue
+            name = "imu" if kind == EMIT_IMU else "gnss"
+            link = self.serial[name]
+            st = self.held_stats[name]
+            st["max_bytes"] = max(st["max_bytes"], len(buf))
+            m = link.write_some(bytes(buf))
+            if m:
+                del buf[:m]
+                if not buf:
+                    st["longest_s"] = max(st["longest_s"], round(now - self._held_start[kind], 6))
+                    continue
+                self._held_since[kind] = now  # progress: the DUT reads, slowly
+            elif now - self._held_since[kind] > link.config.write_timeout:
+                raise LinkError(
+                    f"{link!r}: the DUT on {link.dut_port} took no bytes for {link.config.write_timeout:g} s "
+                    f"({len(buf)} bytes waiting)"
+                )
+
+    def end_realtime(self, end_ns: int, linger_s: float = LINGER_S) -> None:
+        """After the last emission: receive until the DUT's answer to ``end_ns`` (a
+        NAV_SOLUTION valid at ``end_ns`` or later) has come, at most ``linger_s`` wall
+        seconds, then stop the receive thread and hand over everything it received."""
+        assert self._rx is not None
+        with self._dut_side():
+            for kind, name in ((EMIT_IMU, "imu"), (EMIT_GNSS, "gnss")):
+                if self._held[kind]:  # the bytes a lagging DUT has not taken yet
+                    self.serial[name].write(bytes(self._held[kind]))
+                    self._held[kind].clear()
+        deadline = time.monotonic() + linger_s
+        got: list[CanBatch] = []
+        while True:
+            batch = self._rx.take()
+            if len(batch):
+                got.append(batch)
+                sel = np.flatnonzero(batch.can_id == _SOLUTION.frame_id)
+                if sel.size:
+                    values, status = _SOLUTION.decode(batch.take(sel))
+                    if np.any(values["t_ns"][status == 0] >= end_ns):
+                        break
+            if time.monotonic() >= deadline or self._rx.error is not None:
+                break
+            self._check_process()
+            time.sleep(0.005)
+        self.now_ns = end_ns
+        self._stop_receiving(got)
+        self._check_process()
+        self._flush_lines()
+
+    def _stop_receiving(self, got: list[CanBatch] | None = None, *, check: bool = True) -> None:
+        """Stop the real-time receive thread and hand over what it received (idempotent);
+        ``check``: raise :class:`LinkError` if receiving had failed."""
+        rx, self._rx = self._rx, None
+        if rx is None:
+            return
+        frames = CanBatch.concat([*(got or []), rx.stop()])
+        if len(frames) and self._rx_to is not None:
+            self._rx_to(frames)
+        if check and rx.error is not None:
+            raise LinkError(f"receiving from the DUT failed: {rx.error}") from rx.error
