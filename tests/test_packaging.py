@@ -39,7 +39,8 @@ def _project() -> dict:
 
 
 def _imports(folder: str) -> dict[str, set[str]]:
-    """Third-party top-level module -> files of ``folder`` importing it."""
+    """Third-party top-level module -> files of ``folder`` importing it (a script's sibling
+    module, found on the script's own directory, is no third party)."""
     found: dict[str, set[str]] = {}
     for f in sorted((ROOT / folder).rglob("*.py")):
         for node in ast.walk(ast.parse(f.read_text(), str(f))):
@@ -51,7 +52,8 @@ def _imports(folder: str) -> dict[str, set[str]]:
                 continue
             for name in names:
                 top = name.split(".")[0]
-                if top not in sys.stdlib_module_names and top not in OWN:
+                own = top in OWN or (f.parent / f"{top}.py").is_file()
+                if top not in sys.stdlib_module_names and not own:
                     found.setdefault(top, set()).add(str(f.relative_to(ROOT)))
     return found
 
