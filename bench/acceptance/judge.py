@@ -224,7 +224,10 @@ def judge_case(case: TestCase, runs: list[RunResult], errors: list[str] | None =
     if out.errors or not runs:
         verdicts.append(Verdict.ERROR)
     out.verdict = worst(verdicts)
-    if out.verdict is Verdict.NA:  # no criterion applies: nothing was judged
+    own = [cr.verdict for cr in out.criteria if not cr.criterion.id.startswith(PREFIX)]
+    if out.verdict is Verdict.NA or (own and all(v is Verdict.NA for v in own)):
+        # nothing the case asks for was judged (the bench's integrity defaults are no
+        # verdict on the case's requirements): never a PASS
         out.errors.append("no criterion of the case applies to its runs (all N/A)")
         out.verdict = Verdict.ERROR
     return out

@@ -2,7 +2,8 @@
 bench's wait for each answer, so ``output.latency_*`` is always 0 there and could never
 fail: such a criterion is N/A in a lockstep run, neither PASS nor FAIL, shown as N/A in
 the results, the summary and the JUnit file (a ``skipped`` test case); the case's verdict
-comes from its other criteria, and a case with nothing but N/A criteria is an ERROR."""
+comes from its other criteria, and a case whose own criteria are all N/A is an ERROR
+(the bench's integrity defaults passing say nothing of the case's requirements)."""
 
 from __future__ import annotations
 
@@ -113,4 +114,16 @@ def test_a_case_whose_criteria_are_all_not_applicable_is_an_error(lockstep_recor
     assert {v.verdict for v in run_result.values.values()} == {Verdict.NA}
     cr = judge_case(case, [run_result])
     assert cr.verdict is Verdict.ERROR  # a case may not PASS on latency criteria in lockstep
+    assert any("N/A" in e for e in cr.errors)
+
+
+def test_a_case_whose_own_criteria_are_all_not_applicable_is_an_error_despite_passing_integrity(
+    lockstep_recording,
+):
+    case = parse_case(HEAD.format(id="NA-OWN") + LATENCY + DECODE_ONLY, file="na.toml", check_files=False)
+    _, run_result = score_recording(lockstep_recording, case)
+    integrity = [v.verdict for k, v in run_result.values.items() if k.startswith("INTEGRITY-")]
+    assert integrity and all(v.passed for v in integrity)  # the defaults alone would pass it
+    cr = judge_case(case, [run_result])
+    assert cr.verdict is Verdict.ERROR
     assert any("N/A" in e for e in cr.errors)
