@@ -39,7 +39,16 @@ CLI = [sys.executable, "-c", "import signal, sys; signal.signal(signal.SIGINT, s
 
 
 # ---------------------------------------------------------------------------------- signals
-def test_sigterm_and_sigint_raise_keyboard_interrupt_once_then_are_reported_then_abort(capsys):
+@pytest.fixture
+def sigint_default():
+    """SIGINT handled as in an interactive shell, whatever started this test process (a
+    background job of a non-interactive shell inherits SIGINT ignored)."""
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, old)
+
+
+def test_sigterm_and_sigint_raise_keyboard_interrupt_once_then_are_reported_then_abort(capsys, sigint_default):
     before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     with interrupts():
         with pytest.raises(KeyboardInterrupt) as first:
@@ -50,6 +59,17 @@ def test_sigterm_and_sigint_raise_keyboard_interrupt_once_then_are_reported_then
         with pytest.raises(KeyboardInterrupt):
             signal.raise_signal(signal.SIGINT)  # third: abort
     assert {s: signal.getsignal(s) for s in before} == before
+
+
+def test_an_ignored_sigint_stays_ignored_as_nohup_asked():
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        with interrupts():
+            assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+            signal.raise_signal(signal.SIGINT)  # nothing happens
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, old)
 
 
 def _case(tmp_path: Path, mode: str, **config) -> Path:
