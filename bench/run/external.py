@@ -113,7 +113,7 @@ class ExternalDut(RealtimeExchange):
         self._rt_clock: Clock | None = None  # real time: the run's clock stamps them
         self._rx: CanReceiveThread | None = None
         self._rx_to: Callable[[CanBatch], None] | None = None
-        self._rt_offset = (1 << 62, 0)  # CLOCK_REALTIME minus CLOCK_MONOTONIC, ns, and when it was read
+        self._rt_offset = (-(1 << 62), 0)  # a lower bound of CLOCK_REALTIME minus CLOCK_MONOTONIC, ns, and when
         # real time: bytes a full pty line did not take yet, per emission kind, and since when
         self._held: tuple[bytearray, bytearray, bytearray] = (bytearray(), bytearray(), bytearray())
         self._held_since = [0.0, 0.0, 0.0]  # the last progress (a DUT that takes nothing for write_timeout stopped)

@@ -80,17 +80,20 @@ class RealtimeExchange:
         """Bench time of an arrival the kernel stamped (CLOCK_REALTIME ns), so the stamp does
         not depend on when the receive thread got to run; in lockstep the step reached.
 
-        The realtime clock's offset to the monotonic one is the smallest of the paired reads
-        (monotonic first: a pause between the two reads only makes a pair larger) over the
-        last second, so neither a pause nor the host clock's slewing moves the stamp."""
+        The realtime clock's offset to the monotonic one is bounded from below by a read
+        of the realtime clock followed by one of the monotonic clock (their difference: a
+        pause between them only lowers it), and the largest such bound over the last second is
+        used, so a stamp is never put before the frame arrived (a pause makes it at most
+        that pause late, never early) and the host clock's slewing cannot accumulate."""
         clock = self._rt_clock
         if not isinstance(clock, RealTimeClock):
             return self._bench_now()
+        r = time.time_ns()
         mono = time.monotonic_ns()
-        off = time.time_ns() - mono
+        low = r - mono
         best, since = self._rt_offset
-        if off <= best or mono - since > 1_000_000_000:
-            best, since = off, mono
+        if low >= best or mono - since > 1_000_000_000:
+            best, since = low, mono
             self._rt_offset = (best, since)
         arrival = realtime_ns - best
         if not mono - 1_000_000_000 < arrival <= mono:  # the host clock stepped meanwhile: now is all we know
