@@ -299,6 +299,20 @@ class CanLink:
         frames = self._collect(timeout, self.drain_limit if max_frames is None else max_frames)
         return CanBatch.from_frames(frames) if frames else CanBatch.empty()
 
+    #: True when :meth:`collect_raw` leaves the decoding to :meth:`decode_raw` (a receive
+    #: thread then holds the interpreter lock only for the reading).
+    defers_decoding = False
+
+    def collect_raw(self, timeout: float | None, max_items: int) -> list:
+        """What arrived, waiting up to ``timeout`` s for the first item, each stamped on
+        arrival, for :meth:`decode_raw`; here the frames themselves (decoded at once)."""
+        return self._collect(timeout, max_items)
+
+    def decode_raw(self, items: list) -> list[CanFrame]:
+        """The frames of items from :meth:`collect_raw`, in order (the counters updated as
+        if they had been received now)."""
+        return items
+
     def _collect(self, timeout: float | None, max_frames: int) -> list[CanFrame]:
         self._check_open()
         frames: list[CanFrame] = []

@@ -19,10 +19,13 @@ class CanReceiveThread:
     the caller is doing; the caller never waits on it (:meth:`take` hands over what came,
     :attr:`frames_pending` counts it without a lock). The thread waits in the link's
     receive (which releases the interpreter lock) and does nothing else, so it competes
-    with an emission loop only for the microseconds a frame takes. It stops reading once
-    ``max_pending`` frames wait to be taken (memory bounded; a flood is the caller's to
-    judge from :attr:`CanLink.peer_frames`). While it runs, nothing else may receive on
-    the link. :attr:`error` holds what stopped it (the link failed), if anything.
+    with an emission loop only for the microseconds a frame takes; where the link can
+    (:attr:`CanLink.defers_decoding <bench.transport.can_link.CanLink.defers_decoding>`:
+    udp_multicast on Linux) it only reads and stamps the datagrams, which are unpacked
+    when they are taken (a few microseconds per frame instead of tens). It stops reading
+    once ``max_pending`` items wait to be taken (memory bounded; a flood is the caller's
+    to judge from :attr:`arrived`). While it runs, nothing else may receive on the link.
+    :attr:`error` holds what stopped it (the link failed), if anything.
     """
 
     def __init__(self, link: CanLink, *, max_pending: int = 4 << 20, poll_s: float = 0.05, name: str = "can-rx"):
@@ -31,7 +34,9 @@ class CanReceiveThread:
         self.poll_s = poll_s
         self.error: Exception | None = None
         self.full = False
-        self._frames: list[CanFrame] = []
+        self._raw = 0  # items read, decoded or not (deferred decoding)
+        self._frames: list = []
+        self._settled: list[CanFrame] = []
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, name=name, daemon=True)
@@ -50,20 +55,49 @@ class CanReceiveThread:
                     self.full = True
                     self._stop.wait(self.poll_s)
                     continue
-                got = link._collect(self.poll_s, 4096)
+                got = link.collect_raw(self.poll_s, 4096)
                 if got:
                     with lock:
                         frames.extend(got)
+                        self._raw += len(got)
         except Exception as exc:  # the link failed or was closed under the thread
             self.error = exc
+
+    @property
+    def arrived(self) -> int:
+        """Every frame a peer sent that reached the link so far (remote and error frames
+        too; where decoding is deferred, every datagram read, strays included, until
+        :meth:`settle`): what a flood limit is checked against."""
+        return self._raw if self.link.defers_decoding else self.link.peer_frames
+
+    def settle(self, last: int) -> int:
+        """Decode what is pending now, in order, keeping it for :meth:`take` (the link's
+        counters then count it); returns how many of the ``last`` items read were a
+        peer's frames (data, remote or error frames), the rest being strays: a flood is
+        told apart from stray datagrams. Without deferred decoding: ``last``."""
+        if not self.link.defers_decoding:
+            return last
+        with self._lock:
+            raw = self._frames[:]
+            del self._frames[:]
+        k = max(0, len(raw) - last)
+        frames = self.link.decode_raw(raw[:k])
+        before = self.link.peer_frames
+        frames += self.link.decode_raw(raw[k:])
+        peers = self.link.peer_frames - before
+        with self._lock:
+            self._settled.extend(frames)
+        return peers
 
     def take(self) -> CanBatch:
         """The frames received since the last call, in arrival order (an empty batch if none)."""
         with self._lock:
             got = self._frames[:]
             del self._frames[:]
+            settled, self._settled = self._settled, []
         self.full = False
-        return CanBatch.from_frames(got) if got else CanBatch.empty()
+        frames = settled + self.link.decode_raw(got)
+        return CanBatch.from_frames(frames) if frames else CanBatch.empty()
 
     def stop(self) -> CanBatch:
         """Stop the thread (within ``poll_s``) and return what it still holds."""

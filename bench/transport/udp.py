@@ -27,8 +27,11 @@ message field python-can's packing transmits and CAN does not, ``Message.channel
   without a run (``run_tag=""``: the harness started by hand) accepts every run and
   tags its frames with an empty run, which every run accepts.
 * ``sender``: unique per link (process id and random bits): a link skips its own frames
-  (python-can's multicast loops them back; counted ``own``) unless
-  ``receive_own_messages``, and tells its peers apart (``senders``).
+  (multicast loops them back) unless ``receive_own_messages``, and tells its peers apart
+  (``senders``). On Linux the link sends from a socket of its own (an ephemeral port on
+  the same interface) and a socket filter drops the datagrams from that port in the
+  kernel, so own frames never reach the receiver; elsewhere they are skipped after
+  unpacking and counted ``own``.
 * ``sequence``: +1 per frame sent by that link; per peer a receiver expects the next
   number: a gap of k counts ``k`` ``drops``, a number below the expected one a
   ``reordered`` frame (delivered late).
@@ -43,13 +46,9 @@ enlarged (8 MiB by default, ``SO_RCVBUFFORCE`` when permitted) to make overflow 
 
 from __future__ import annotations
 
-import contextlib
 import ipaddress
 import os
 import secrets
-import select
-import socket
-import struct
 import time
 from collections.abc import Callable, Mapping
 from typing import Any
@@ -60,6 +59,7 @@ from can.interfaces.udp_multicast.utils import pack_message, unpack_message
 from bench.errors import ConfigError, LinkError
 from bench.frames import CanFrame
 from bench.transport.can_link import SKIPPED, CanConfig, CanLink
+from bench.transport.udp_socket import MulticastSocket
 
 __all__ = [
     "UdpMulticastCanLink",
@@ -79,10 +79,6 @@ DEFAULT_PORT = 43113
 DEFAULT_INTERFACE_ADDRESS = "127.0.0.1"
 #: The options of a udp_multicast link besides python-can's common ones.
 UDP_OPTIONS = ("port", "interface_address", "hop_limit")
-_SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33)
-_IP_MULTICAST_ALL = getattr(socket, "IP_MULTICAST_ALL", 49)  # Linux
-_MAX_DATAGRAM = 4096  # a packed CAN FD message is about 200 bytes
-_SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)  # Linux: the kernel's arrival time of each datagram
 
 
 def check_udp_config(channel: Any, options: Mapping[str, Any], *, file: str | None = None, key: str = "can") -> None:
@@ -121,83 +117,6 @@ def check_udp_config(channel: Any, options: Mapping[str, Any], *, file: str | No
             )
 
 
-class _MulticastSocket:
-    """The bench's end of the group: send, receive (raw datagrams), shutdown."""
-
-    def __init__(self, group: str, port: int, interface_address: str, hop_limit: int, recv_buffer: int):
-        self.group = group
-        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        try:
-            iface = socket.inet_aton(interface_address)
-            sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, hop_limit)
-            sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_IF, iface)
-            sock.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_LOOP, 1)
-            if port:  # shared with the DUT's socket (python-can reuses addresses)
-                sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-                if hasattr(socket, "SO_REUSEPORT"):
-                    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEPORT, 1)
-            sock.bind((group, port))
-            if not port:  # a port no socket held; now open it to the DUT's
-                sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-            with contextlib.suppress(OSError):  # only the group joined here (Linux)
-                sock.setsockopt(socket.IPPROTO_IP, _IP_MULTICAST_ALL, 0)
-            sock.setsockopt(socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP, socket.inet_aton(group) + iface)
-            if recv_buffer:
-                for opt in (_SO_RCVBUFFORCE, socket.SO_RCVBUF):
-                    try:
-                        sock.setsockopt(socket.SOL_SOCKET, opt, recv_buffer)
-                        break
-                    except OSError:
-                        continue
-        except OSError:
-            sock.close()
-            raise
-        self.sock = sock
-        #: CLOCK_REALTIME ns at which the kernel received the last datagram read (None: unknown)
-        self.arrival_ns: int | None = None
-        try:
-            sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
-            self._stamped = True
-        except OSError:
-            self._stamped = False
-        self.port = int(sock.getsockname()[1])
-        self._dest = (group, self.port)
-        self._poll = select.poll()  # not select(): any descriptor number
-        self._poll.register(sock, select.POLLIN)
-
-    def send(self, data: bytes, timeout: float | None) -> None:
-        if timeout is None:
-            self.sock.sendto(data, self._dest)
-            return
-        try:
-            self.sock.sendto(data, socket.MSG_DONTWAIT, self._dest)
-        except BlockingIOError:
-            out = select.poll()
-            out.register(self.sock, select.POLLOUT)
-            if not out.poll(timeout * 1e3):
-                raise can.CanTimeoutError(f"the socket took no datagram within {timeout:g} s") from None
-            self.sock.sendto(data, socket.MSG_DONTWAIT, self._dest)
-
-    def recv(self, timeout: float | None) -> bytes | None:
-        if timeout != 0.0 and not self._poll.poll(None if timeout is None else timeout * 1e3):
-            return None
-        try:
-            if not self._stamped:
-                return self.sock.recv(_MAX_DATAGRAM, socket.MSG_DONTWAIT)
-            data, anc, _, _ = self.sock.recvmsg(_MAX_DATAGRAM, 64, socket.MSG_DONTWAIT)
-        except BlockingIOError:
-            return None
-        self.arrival_ns = None
-        for level, kind, cdata in anc:
-            if level == socket.SOL_SOCKET and kind == _SO_TIMESTAMPNS and len(cdata) >= 16:
-                sec, nsec = struct.unpack("qq", cdata[:16])
-                self.arrival_ns = sec * 1_000_000_000 + nsec
-        return data
-
-    def shutdown(self) -> None:
-        self.sock.close()
-
-
 class UdpMulticastCanLink(CanLink):
     """A :class:`~bench.transport.can_link.CanLink` on UDP multicast, isolated per run.
 
@@ -213,7 +132,7 @@ class UdpMulticastCanLink(CanLink):
         Socket receive buffer, bytes (0: the system's).
 
     ``stats()`` adds ``port``, ``drops`` (frames missing from tagged peers), ``reordered``,
-    ``untagged``, ``own`` (own frames seen and skipped), ``senders``, ``foreign``
+    ``untagged``, ``own`` (own frames seen and skipped; 0 where the kernel drops them), ``senders``, ``foreign``
     (datagrams that are no message, or carry a malformed tag) and ``other_bench``
     (frames of another run).
     """
@@ -249,13 +168,16 @@ class UdpMulticastCanLink(CanLink):
         """``<run>:<sender>``: what this link's frames carry after ``bench:``."""
         return f"{self.run_tag}:{self.sender}"
 
-    def _open(self) -> _MulticastSocket:  # type: ignore[override]
+    def _open(self) -> MulticastSocket:  # type: ignore[override]
         opts = self.config.options
         port = DEFAULT_PORT if opts.get("port") is None else int(opts["port"])
         iface = str(opts.get("interface_address") or DEFAULT_INTERFACE_ADDRESS)
         group = str(self.config.resolved_channel)
         try:
-            sock = _MulticastSocket(group, port, iface, int(opts.get("hop_limit", 1)), self.recv_buffer)
+            sock = MulticastSocket(
+                group, port, iface, int(opts.get("hop_limit", 1)), self.recv_buffer,
+                skip_own=not self.config.receive_own_messages,
+            )
         except OSError as exc:
             raise LinkError(
                 f"cannot open CAN over UDP multicast: group {group} port {port or '(a free one)'} on the "
@@ -286,6 +208,14 @@ class UdpMulticastCanLink(CanLink):
             raise LinkError(f"{self!r}: receiving failed: {exc}") from exc
         if data is None:
             return None
+        arrival = self.bus.arrival_ns
+        msg = self._unpack(data, arrival)
+        if msg is not SKIPPED:
+            self._arrival_ns = arrival  # the kernel's arrival time (CLOCK_REALTIME), for arrival_clock
+        return msg
+
+    def _unpack(self, data: bytes, arrival: int | None) -> can.Message | object:
+        """The message of a datagram, or :data:`SKIPPED` (counted ``foreign``)."""
         try:
             msg = unpack_message(data, check=True)
             if not isinstance(msg.channel, str | None):
@@ -293,10 +223,57 @@ class UdpMulticastCanLink(CanLink):
         except Exception:  # stray bytes: anything msgpack or can.Message refuses
             self.foreign += 1
             return SKIPPED
-        arrival = self.bus.arrival_ns
-        self._arrival_ns = arrival  # the kernel's arrival time (CLOCK_REALTIME), for arrival_clock
         msg.timestamp = (arrival if arrival is not None else time.time_ns()) * 1e-9  # as python-can stamps it
         return msg
+
+    @property
+    def defers_decoding(self) -> bool:  # type: ignore[override]
+        """Where the kernel drops own frames, every datagram read is a peer's or a stray:
+        they are unpacked later (:meth:`decode_raw`)."""
+        return bool(getattr(self.bus, "own_filtered", False))
+
+    def collect_raw(self, timeout: float | None, max_items: int) -> list:
+        """The datagrams that arrived, each with its bench time of arrival (None: none
+        known), waiting up to ``timeout`` s for the first; unpacked later by
+        :meth:`decode_raw`. Decoded at once where own frames reach the socket."""
+        if not self.defers_decoding:
+            return self._collect(timeout, max_items)
+        self._check_open()
+        bus, items = self.bus, []
+        wait = timeout
+        for _ in range(max(1, min(max_items, self.drain_limit))):
+            try:
+                data = bus.recv(wait)
+            except OSError as exc:
+                raise LinkError(f"{self!r}: receiving failed: {exc}") from exc
+            if data is None:
+                break
+            arrival = bus.arrival_ns
+            if arrival is not None and self.arrival_clock is not None:
+                stamp: int | None = self.arrival_clock(arrival)
+            else:
+                stamp = self.clock() if self.clock is not None else None
+            items.append((data, stamp, arrival))
+            wait = 0.0
+        return items
+
+    def decode_raw(self, items: list) -> list[CanFrame]:
+        if not self.defers_decoding:
+            return items
+        frames = []
+        for data, stamp, arrival in items:
+            msg = self._unpack(data, arrival)
+            if msg is SKIPPED:
+                continue
+            self._arrival_ns = None
+            frame = self._from_message(msg)  # type: ignore[arg-type]
+            if frame is None:
+                continue
+            self.received += 1
+            if stamp is not None:
+                frame = CanFrame(int(stamp), frame.can_id, frame.data, frame.fd)
+            frames.append(frame)
+        return frames
 
     def _to_message(self, t_ns: int, can_id: int, data: bytes, fd: bool) -> can.Message:
         msg = super()._to_message(t_ns, can_id, data, fd)

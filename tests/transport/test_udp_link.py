@@ -167,3 +167,38 @@ def test_open_can_link_gives_udp_links_their_run_tag(ns):
         assert isinstance(link, UdpMulticastCanLink) and link.run_tag == "abc" and link.tag.startswith("abc:")
     finally:
         link.close()
+
+
+def test_own_frames_never_reach_the_socket_and_a_receive_thread_decodes_when_taken(ns):
+    """The link's own frames are dropped in the kernel (the socket filter on its sending
+    port); a receive thread only reads and stamps the datagrams, which are unpacked when
+    taken: the peers' frames, in order, stamped with the kernel's arrival time, strays
+    told apart from a peer's frames."""
+    import time
+
+    from bench.transport.can_rx import CanReceiveThread
+
+    bench, dut = _link(ns, 43506, run_tag="runA"), _link(ns, 43506, run_tag="runA")
+    bench.arrival_clock = lambda realtime_ns: realtime_ns  # bench time: the kernel's stamp itself
+    rx = CanReceiveThread(bench, poll_s=0.01)
+    try:
+        assert bench.defers_decoding and bench.bus.own_filtered
+        bench.send_many([CanFrame(i, 0x101, bytes(8)) for i in range(20)])  # its own: never come back
+        before = time.time_ns()
+        dut.send_many([CanFrame(i, 0x300 + i % 4, bytes([i]) * 8) for i in range(30)])
+        after = time.time_ns()
+        _send_raw(ns, [b"stray"] * 10, (GROUP, 43506))
+        while rx.arrived < 40:  # a hang guard: the test timeout
+            time.sleep(0.01)
+        assert bench.peer_frames == 0 and bench.foreign == 0  # read, not unpacked yet
+        assert rx.settle(40) == 30  # of the last 40 datagrams, 30 are the DUT's, 10 strays
+        assert bench.foreign == 10 and bench.peer_frames == 30
+        frames = rx.stop().frames()
+    finally:
+        rx.stop()
+        bench.close()
+        dut.close()
+    assert [f.data[0] for f in frames] == list(range(30))  # every DUT frame, in order
+    assert [f.can_id for f in frames[:4]] == [0x300, 0x301, 0x302, 0x303]
+    assert all(before <= f.t_ns <= after for f in frames)  # stamped on arrival, not when unpacked
+    assert bench.stats()["own"] == 0 and bench.received == 30
