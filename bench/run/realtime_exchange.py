@@ -45,6 +45,9 @@ _SOLUTION = codec("NAV_SOLUTION")
 #: Real time: how long (wall seconds) the bench waits after its last emission for the
 #: DUT's answer to the end of the run.
 LINGER_S = 2.0
+#: Real time: how many emissions ahead of the clock the emission loop keeps the plan
+#: touched (about 2 s of 1 kHz traffic).
+WARM_AHEAD = 2048
 
 
 def _opened_by_group(pgid: int, paths: set[str]) -> set[str]:
@@ -64,7 +67,6 @@ def _opened_by_group(pgid: int, paths: set[str]) -> set[str]:
         except OSError:  # gone meanwhile, or not ours to look at
             continue
     return found
-
 
 
 class RealtimeExchange:
@@ -139,33 +141,54 @@ class RealtimeExchange:
         self._rx_to = received
         self._rx = CanReceiveThread(self.can)
 
-    def exchange_realtime(self, plan: RealtimePlan, clock: Clock, timing: TimingLog, end_ns: int) -> None:
-        """Emit one window's traffic on the clock (after :meth:`begin_realtime`): wait,
-        send, measure the lateness; nothing else but a flood check per emission and a look
-        at the DUT process every 100 ms of bench time."""
-        flood = int(self.spec.flood_frames_per_s * max(1e-9 * (end_ns - self.now_ns), 0.01)) + 100
+    def exchange_realtime(self, plan: RealtimePlan, clock: Clock, timing: TimingLog, start_ns: int) -> None:
+        """Emit the run's traffic on the clock (after :meth:`begin_realtime`): wait, send,
+        measure the lateness; nothing else but a flood check per emission (per window of
+        ``plan``, a joined plan: :func:`~bench.run.realtime_plan.join_plans`) and a look at
+        the DUT process every 100 ms of bench time."""
+        starts = [start_ns, *plan.window_t1[:-1]]
+        floods = [
+            int(self.spec.flood_frames_per_s * max(1e-9 * (t1 - t0), 0.01)) + 100
+            for t0, t1 in zip(starts, plan.window_t1, strict=True)
+        ]
         with self._dut_side():
-            self._emit(plan, clock, timing, flood)
-        self.now_ns = end_ns
+            self._emit(plan, clock, timing, floods)
+        self.now_ns = plan.window_t1[-1] if plan.window_t1 else start_ns
 
-    def _emit(self, plan: RealtimePlan, clock: Clock, timing: TimingLog, flood: int) -> None:
+    def _emit(self, plan: RealtimePlan, clock: Clock, timing: TimingLog, floods: list[int]) -> None:
+        """The emission loop, once over the whole run. Memory idle for seconds is slow to
+        touch on a virtual machine (:mod:`bench.run.realtime_plan`), and the plan was made
+        before the clock started: after each step's sends the loop touches the plan up to
+        :data:`WARM_AHEAD` emissions ahead (a few emissions per step, so the slow first
+        touch falls in the slack after a send, not between a wait and its send), and before
+        each wait the emissions it is about to make. The lateness is recorded after the
+        sends."""
         assert self.can is not None and self._rx is not None
         can, rx = self.can, self._rx
         send_can = can.send
         writes = (None, self.serial["imu"].write_some, self.serial["gnss"].write_some)
         held = self._held
-        n0, odd0 = can.peer_frames, can.remote + can.error_frames  # every frame counts
-        k = 0
-        next_check = self.now_ns  # the DUT process is checked every 100 ms of bench time
         times, kinds, index = plan.times, plan.kinds, plan.index
         payloads = (plan.can, plan.imu, plan.gnss)
         on_can = EMIT_CAN  # locals: no global lookups per emission
         wait_until, add = clock.wait_until, timing.add
         n = len(times)
+        ends, t1s = plan.ends or [n], plan.window_t1 or [self.now_ns]
+        w, end, flood = 0, ends[0], floods[0] if floods else 1 << 62
+        n0, odd0 = rx.arrived, can.remote + can.error_frames  # every frame counts
+        k = warm = 0
+        next_check = self.now_ns  # the DUT process is checked every 100 ms of bench time
         while k < n:
             t = times[k]
-            add(t, wait_until(t))
-            while k < n and times[k] == t:
+            j = k
+            while j < n and times[j] == t:  # touch what is sent at t, before the wait
+                data = payloads[kinds[j]][index[j]]
+                if kinds[j] == on_can:
+                    data = data.data
+                data[-1:]
+                j += 1
+            late = wait_until(t)
+            while k < j:
                 kind = kinds[k]
                 data = payloads[kind][index[k]]
                 if kind == on_can:
@@ -177,21 +200,45 @@ class RealtimeExchange:
                     if m < len(data):
                         self._hold(kind, data[m:])
                 k += 1
+            add(t, late)
             if held[1] or held[2]:
                 self._retry_held()
-            if can.peer_frames - n0 > flood or rx.full:
-                self.now_ns = t
-                self._flush_lines()
-                raise DutError(
-                    f"the DUT floods the bus: {can.peer_frames - n0} frames{self._odd_frames(odd0)} "
-                    f"in one window (limit {flood})"
-                )
+            if rx.arrived - n0 > flood or rx.full:
+                n0 = self._flood_check(rx, t, n0, flood, odd0)
+            if k >= end and w + 1 < len(ends):  # the next window: its own flood count
+                self.now_ns = t1s[w]
+                w += 1
+                end, flood = ends[w], floods[w]
+                n0, odd0 = rx.arrived, can.remote + can.error_frames
+            if warm < k:
+                warm = k
+            stop = min(n, k + WARM_AHEAD, warm + 4)
+            while warm < stop:  # keep the next seconds of the plan warm, 4 emissions per step
+                data = payloads[kinds[warm]][index[warm]]
+                if kinds[warm] == on_can:
+                    data = data.data
+                data[-1:]
+                warm += 1
             if t >= next_check:  # a few microseconds every 100 ms, late or not
                 next_check = t + 100_000_000
                 self.now_ns = t
                 self._check_process()
                 if rx.error is not None:
                     raise LinkError(f"receiving from the DUT failed: {rx.error}") from rx.error
+
+    def _flood_check(self, rx: CanReceiveThread, t: int, n0: int, flood: int, odd0: int) -> int:
+        """More than ``flood`` frames arrived in this window (counted from ``n0``): a
+        :class:`DutError` if they are the DUT's (decoded now, where decoding is deferred:
+        stray datagrams do not count); else the count to go on from."""
+        got = rx.arrived - n0
+        peers = rx.settle(got)
+        if peers > flood or rx.full:
+            self.now_ns = t
+            self._flush_lines()
+            raise DutError(
+                f"the DUT floods the bus: {peers} frames{self._odd_frames(odd0)} in one window (limit {flood})"
+            )
+        return n0 + got - peers  # the strays do not count
 
     def _hold(self, kind: int, rest: bytes) -> None:
         """A pty line is full (its DUT has not read): keep the bytes, in order, for later."""

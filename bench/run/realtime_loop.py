@@ -3,7 +3,9 @@ the clock starts, then every emission at its time on the clock, the DUT's frames
 received as they come, the lateness of each emission measured, and the run's budget
 checked at the end.
 
-The emission loop does nothing but wait and send: an external DUT's frames are stamped
+The emission loop does nothing but wait and send, once over the whole run (the windows
+joined: :func:`~bench.run.realtime_plan.join_plans`; progress is reported at the end, as
+anything else run between windows would stall the next emissions): an external DUT's frames are stamped
 on arrival by a receive thread and decoded and recorded after the last emission
 (:meth:`ExternalDut.end_realtime <bench.run.external.ExternalDut.end_realtime>`, which
 also waits for the DUT's answer to the end of the run); nothing is written to the
@@ -18,11 +20,17 @@ import numpy as np
 
 from bench.clock import realtime_priority
 from bench.clock.pacing import RealTimeClock, TimingLog
+from bench.run.realtime_plan import join_plans
 from bench.run.result import TimingBudgetError
 from bench.run.session import RunSession
 from bench.run.traffic import Traffic
 
-__all__ = ["run_realtime", "steps_of"]
+__all__ = ["run_realtime", "steps_of", "START_LEAD_NS"]
+
+#: Real time: the run's first instant (its first emissions) is this long after the clock
+#: is started, so what is set up at the start (the receive thread, the recording's
+#: metadata) does not make them late.
+START_LEAD_NS = 50_000_000
 
 
 def run_realtime(s: RunSession) -> None:
@@ -43,26 +51,30 @@ def run_realtime(s: RunSession) -> None:
         s.rec.metadata("realtime_start", {"waited_for_dut_s": f"{waited:.3f}"})
     else:
         out.deferred = True  # the in-process DUT's output is recorded after the loop
+    joined = join_plans([(t1, plan) for _, t1, plan, _ in plans]) if ext is not None else None
     s.rec.metadata("realtime_scheduling", realtime_priority.acquire())
     clock, timing = s.clock, s.timing
-    clock.start(s.start_ns)
-    if isinstance(clock, RealTimeClock):
+    if isinstance(clock, RealTimeClock):  # the receive thread starts before the first emission is due
+        clock.start(s.start_ns, lead_ns=START_LEAD_NS)
         s.rec.metadata("realtime_clock", clock.anchor())
+    else:
+        clock.start(s.start_ns)
     if ext is not None:
+        assert joined is not None
         ext.begin_realtime(clock, out.feed)
-    for t0, t1, plan, step_times in plans:
-        if ext is not None:
-            ext.exchange_realtime(plan, clock, timing, t1)
-        else:
+        ext.exchange_realtime(joined, clock, timing, s.start_ns)
+        ext.end_realtime(s.windows[-1][1] if s.windows else s.start_ns)
+    else:
+        for t0, t1, plan, step_times in plans:
             assert s.dut_in is not None
             for k, part in enumerate(plan):
                 t = int(step_times[k])
                 timing.add(t, clock.wait_until(t))
                 lo = int(step_times[k - 1]) + 1 if k else t0
                 out.feed(s.dut_in.exchange(part, step_times[k : k + 1], lo))
-        s.report(t1)
+            s.report(t1)
     if ext is not None:
-        ext.end_realtime(s.windows[-1][1] if s.windows else s.start_ns)
+        s.report(s.windows[-1][1] if s.windows else s.start_ns)
     realtime_priority.release()
     out.deferred = False
     out.process()
