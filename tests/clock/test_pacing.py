@@ -61,8 +61,27 @@ def test_a_far_emission_is_slept_for_up_to_the_spin_window_then_spun_for(fake):
     assert fake.now >= t0 + 10_000_000 and late == fake.now - (t0 + 10_000_000)
     assert late < fake.tick  # the first read at or past the due time ends the spin
     fake.sleeps.clear()
-    c.wait_until(10_200_000)  # within the spin window: no sleep at all
-    assert fake.sleeps == [] and fake.now >= t0 + 10_200_000
+    c.wait_until(10_100_000)  # shorter than a sleep worth taking: spun whole
+    assert fake.sleeps == [] and fake.now >= t0 + 10_100_000
+
+
+def test_closely_spaced_waits_spin_at_most_their_share_and_sleep_the_rest(fake):
+    """A long spin window never makes a loop of emissions spin all the time (SCHED_FIFO
+    would be throttled by the kernel): of each 500 us between two waits, 80 % is spun."""
+    c = RealTimeClock(speed=1.0, spin_ns=800_000, spin_share=0.8)
+    fake.tick = 1_000
+    c.start()
+    for k in range(1, 21):
+        fake.sleeps.clear()
+        back = fake.now
+        c.wait_until(k * 500_000)
+        if k > 1:  # each wait begins where the last one returned
+            assert len(fake.sleeps) == 1
+            assert fake.sleeps[0] * 1e9 == pytest.approx(0.2 * 500_000, abs=3 * fake.tick)
+        assert fake.now >= back
+    fake.sleeps.clear()
+    c.wait_until(20 * 500_000 + 5_000_000)  # a far one: sleeps all but the spin window
+    assert fake.sleeps[0] * 1e9 == pytest.approx(5_000_000 - 800_000, abs=3 * fake.tick)
 
 
 def test_a_late_wake_up_is_reported_as_lateness_not_hidden(fake):
@@ -122,3 +141,14 @@ def test_timing_log_and_budget():
     assert s.within(TimingBudget(p99_ns=200_000, max_ns=2_000_000))
     assert not s.within(TimingBudget(p99_ns=200_000, max_ns=99_999))  # the max alone can miss it
     assert TimingLog.summarize(np.array([], dtype=np.int64)).count == 0
+
+
+def test_a_start_with_a_lead_puts_the_origin_that_far_ahead(fake):
+    c = RealTimeClock(speed=1.0, spin_ns=300_000)
+    fake.tick = 1_000
+    c.start(5_000_000_000, lead_ns=50_000_000)
+    t0 = fake.now
+    assert c.now_ns() < 5_000_000_000 - 49_000_000  # the run's first instant is 50 ms away
+    assert int(c.anchor()["monotonic_ns"]) == t0 + 50_000_000
+    late = c.wait_until(5_000_000_000)
+    assert fake.now >= t0 + 50_000_000 and late < fake.tick
