@@ -174,6 +174,18 @@ class TimingLog:
         self._late[self._n] = lateness_ns
         self._n += 1
 
+    def reserve(self, n: int) -> None:
+        """Room for ``n`` more entries, allocated and touched now (before a real-time loop:
+        growing the log inside it copied the arrays and faulted in fresh pages, a 6-13 ms
+        stall at the 65 536th emission)."""
+        need = self._n + int(n)
+        if need > len(self._t):
+            t, late = np.zeros(need, np.int64), np.zeros(need, np.int64)
+            t[: self._n], late[: self._n] = self._t[: self._n], self._late[: self._n]
+            self._t, self._late = t, late
+        self._t[self._n :].fill(0)  # touched: the pages are there
+        self._late[self._n :].fill(0)
+
     def take(self) -> tuple[np.ndarray, np.ndarray]:
         """The entries recorded since the last take (for the recording)."""
         t, late = self._t[: self._n].copy(), self._late[: self._n].copy()

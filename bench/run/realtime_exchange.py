@@ -48,6 +48,8 @@ LINGER_S = 2.0
 #: Real time: how many emissions ahead of the clock the emission loop keeps the plan
 #: touched (about 2 s of 1 kHz traffic).
 WARM_AHEAD = 2048
+#: ... in the steps followed by at least this much time before the next emission (ns).
+WARM_SLACK_NS = 300_000
 
 
 def _opened_by_group(pgid: int, paths: set[str]) -> set[str]:
@@ -212,8 +214,9 @@ class RealtimeExchange:
                 n0, odd0 = rx.arrived, can.remote + can.error_frames
             if warm < k:
                 warm = k
-            stop = min(n, k + WARM_AHEAD, warm + 4)
-            while warm < stop:  # keep the next seconds of the plan warm, 4 emissions per step
+            # keep the next seconds of the plan warm, 4 emissions per step with time to spare
+            stop = min(n, k + WARM_AHEAD, warm + 4) if k < n and times[k] - t > WARM_SLACK_NS else warm
+            while warm < stop:
                 data = payloads[kinds[warm]][index[warm]]
                 if kinds[warm] == on_can:
                     data = data.data

@@ -52,8 +52,9 @@ def run_realtime(s: RunSession) -> None:
     else:
         out.deferred = True  # the in-process DUT's output is recorded after the loop
     joined = join_plans([(t1, plan) for _, t1, plan, _ in plans]) if ext is not None else None
-    s.rec.metadata("realtime_scheduling", realtime_priority.acquire())
     clock, timing = s.clock, s.timing
+    timing.reserve(len(joined.times) if joined is not None else sum(len(p[3]) for p in plans))
+    s.rec.metadata("realtime_scheduling", realtime_priority.acquire())
     if isinstance(clock, RealTimeClock):  # the receive thread starts before the first emission is due
         clock.start(s.start_ns, lead_ns=START_LEAD_NS)
         s.rec.metadata("realtime_clock", clock.anchor())

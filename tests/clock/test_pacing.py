@@ -152,3 +152,15 @@ def test_a_start_with_a_lead_puts_the_origin_that_far_ahead(fake):
     assert int(c.anchor()["monotonic_ns"]) == t0 + 50_000_000
     late = c.wait_until(5_000_000_000)
     assert fake.now >= t0 + 50_000_000 and late < fake.tick
+
+
+def test_a_reserved_timing_log_never_grows_inside_the_loop():
+    log = TimingLog(capacity=4)
+    log.add(1, 10)
+    log.reserve(100_000)
+    arrays = log._t, log._late
+    for i in range(100_000):
+        log.add(i + 2, i)
+    assert log._t is arrays[0] and log._late is arrays[1]  # no copy, no new pages while it ran
+    t, late = log.take()
+    assert t[0] == 1 and late[0] == 10 and len(t) == 100_001 and late[-1] == 99_999
