@@ -49,7 +49,7 @@ TOP_KEYS = (
 )
 SENSORS = ("imu", "doppler", "odometer", "bds", "driver")
 COMMANDS = {"grid": 1, "geographic": 2, "reset": 3}
-COMMAND_PLACEHOLDERS = ("can_interface", "can_channel", "can_port", "imu_port", "gnss_port", "config")
+COMMAND_PLACEHOLDERS = ("can_interface", "can_channel", "can_port", "imu_port", "gnss_port", "config", "python")
 #: link name -> key -> (checker kind, description)
 LINK_KEYS: dict[str, dict[str, str]] = {
     "can": {"interface": "str", "channel": "str", "bitrate": "int", "data_bitrate": "int", "fd": "bool",

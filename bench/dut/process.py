@@ -2,7 +2,8 @@
 
 The bench starts it from the test case's command line with the placeholders
 ``{can_interface}``, ``{can_channel}``, ``{can_port}`` (the udp_multicast port; 0 on
-other interfaces), ``{imu_port}``, ``{gnss_port}`` and ``{config}`` filled in, in a
+other interfaces), ``{imu_port}``, ``{gnss_port}``, ``{config}`` and ``{python}`` (the
+bench's own interpreter, for ``{python} -m bench.dut.harness``) filled in, in a
 session of its own (so the whole process group can be ended), captures its standard
 output and error line by line with bench timestamps, notices when it dies, and on
 shutdown sends SIGTERM to the group, waits the shutdown timeout, then SIGKILLs the
@@ -34,7 +35,7 @@ from bench.errors import ConfigError, DutError
 
 __all__ = ["DutProcess", "LogLine", "fill_placeholders", "uses_placeholder", "PLACEHOLDERS"]
 
-PLACEHOLDERS = ("can_interface", "can_channel", "can_port", "imu_port", "gnss_port", "config")
+PLACEHOLDERS = ("can_interface", "can_channel", "can_port", "imu_port", "gnss_port", "config", "python")
 _MAX_LINE = 64 * 1024
 
 

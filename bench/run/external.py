@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import sys
 import tempfile
 import time
 from collections.abc import Callable, Iterator
@@ -158,6 +159,7 @@ class ExternalDut(RealtimeExchange):
             "imu_port": self.serial["imu"].dut_port or str(self.serial["imu"].config.port),
             "gnss_port": self.serial["gnss"].dut_port or str(self.serial["gnss"].config.port),
             "config": str(cfg_path),
+            "python": sys.executable,  # the bench's interpreter: `{python} -m bench.dut.harness`
         }
         if not self.spec.command:
             raise ConfigError("an external DUT needs its command line", key="dut.command")

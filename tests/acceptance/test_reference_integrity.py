@@ -31,6 +31,7 @@ CASES = sorted(p for p in (Path(__file__).resolve().parents[2] / "test_cases").g
 #: the whole-run check per case: rotate the kinds over the cases
 WHOLE = {
     "S000_dead_reckoning.toml": "time_frozen",
+    "S000_external.toml": "no_quality",
     "S000_sins_doppler.toml": "bad_crc",
     "S001_bds_sins.toml": "time_jump",
     "S002_sins_odometer_faults.toml": "drop",
@@ -70,8 +71,8 @@ def degrade(run: RunData, kind: str, fraction: float = 0.4) -> RunData:
     return dataclasses.replace(run, nav=nav, quality=quality, bad_frames=[*run.bad_frames, *bad])
 
 
-def test_there_are_six_reference_cases():
-    assert [p.name for p in CASES] == list(WHOLE) and len(CASES) == 6
+def test_there_are_seven_reference_cases():
+    assert [p.name for p in CASES] == list(WHOLE) and len(CASES) == 7
 
 
 @pytest.mark.parametrize("name", [p.name for p in CASES])

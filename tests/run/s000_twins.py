@@ -1,0 +1,97 @@
+"""The S000 case files, shortened, for the S000-external tests (tests/run/test_s000_external.py).
+
+:func:`shortened` writes a copy of a case file of ``test_cases/`` that runs only the
+first ``duration_s`` of its drive (``[scenario] duration``, with the ``[case] shortened``
+reason the schema asks for), its scenario path made absolute; ``can`` replaces the CAN
+link, ``in_process`` turns the external case into its in-process twin (the same
+estimator and configuration, called directly in 10 ms steps). Text edits of the file as
+it is shipped, so what runs is the shipped case, not a rewrite of it.
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from bench.record.mcap_io import RecordingReader
+
+ROOT = Path(__file__).resolve().parents[2]
+CASES = ROOT / "test_cases"
+EXTERNAL = CASES / "S000_external.toml"
+IN_PROCESS = CASES / "S000_sins_doppler.toml"
+DOPPLER_ID = 0x130
+
+
+def _sub(pattern: str, repl: str, text: str, what: str) -> str:
+    new, n = re.subn(pattern, repl, text, count=1, flags=re.M)
+    if n != 1:
+        raise AssertionError(f"the case file has no {what} to edit ({pattern!r})")
+    return new
+
+
+def shortened(src: Path, folder: Path, *, duration_s: float, can: str | None = None,
+              in_process: bool = False) -> Path:
+    """A copy of case ``src`` in ``folder`` that runs ``duration_s`` (see the module docstring)."""
+    text = src.read_text()
+    text = _sub(r'^script = "scenarios/', f'script = "{CASES}/scenarios/', text, "[scenario] script")
+    text = _sub(r"^\[scenario\]$", f'[scenario]\nduration = "{duration_s:g} s"', text, "[scenario] table")
+    text = _sub(r"^\[case\]$", '[case]\nshortened = "a test: alignment and the first minutes of driving"', text,
+                "[case] table")
+    if can is not None:
+        text = _sub(r"^can = \{.*\}$", f"can = {can}", text, "[dut.links] can")
+    if in_process:
+        cmd = tomllib.loads(src.read_text())["dut"]["command"]
+        name = re.search(r"--estimator (\S+)", cmd)
+        assert name, cmd
+        text = _sub(r'^kind = "external"$', f'kind = "in_process"\nname = "{name.group(1)}"', text, "[dut] kind")
+        text = _sub(r"^command = .*\n", "", text, "[dut] command")
+        text = _sub(r"^startup_timeout = .*\n", "", text, "[dut] startup_timeout")
+        text = _sub(r'^step = "1 s"$', 'step = "10 ms"', text, "[clock] step")
+    out = folder / src.name
+    out.write_text(text)
+    return out
+
+
+def nav(path: Path) -> dict[str, np.ndarray]:
+    """The DUT's NAV_SOLUTION and NAV_QUALITY records of a recording, without their
+    arrival times (which depend on how the DUT was reached)."""
+    r = RecordingReader(path)
+    out = {}
+    for topic in ("/dut/nav_solution", "/dut/nav_quality"):
+        rec = r.read_columnar(topic)
+        out[topic] = rec[[n for n in rec.dtype.names if n != "rx_ns"]]
+    return out
+
+
+def sensor_inputs(path: Path) -> tuple[np.ndarray, bytes]:
+    """The DOPPLER frames and the IMU line's bytes a run sent (the same recording's inputs)."""
+    r = RecordingReader(path)
+    can = r.read_columnar("/wire/can/tx")
+    dop = can[can["can_id"] == DOPPLER_ID][["t_ns", "data"]]
+    _, _, buf = r.read_chunks("/wire/imu/tx")
+    return dop, buf.tobytes()
+
+
+#: NAV_SOLUTION quantization (ICD 2.2): SI units of the decoded records per field.
+QUANTUM = {"lat": np.radians(1e-7), "lon": np.radians(1e-7), "h": 1e-3, "vel_n": 1e-4,
+           "heading": np.radians(1e-7), "pitch": np.radians(1e-7), "roll": np.radians(1e-7)}
+
+
+def differences(a: np.ndarray, b: np.ndarray) -> str:
+    """Where two NAV_SOLUTION record arrays differ, in output quanta (for failure messages)."""
+    if len(a) != len(b):
+        return f"{len(a)} epochs against {len(b)}"
+    lines = []
+    for name in a.dtype.names:
+        d = np.abs(a[name].astype(np.float64) - b[name].astype(np.float64))
+        d = d.reshape(len(a), -1).max(axis=1)
+        bad = np.flatnonzero(d > 0)
+        if bad.size:
+            q = QUANTUM.get(name)
+            size = f"{d.max() / q:.2f} quanta" if q else f"{d.max():g}"
+            lines.append(f"{name}: {bad.size} epochs differ, first at t = {a['t_ns'][bad[0]] / 1e9:.2f} s, "
+                         f"at most {size}")
+    return "; ".join(lines) or "identical"
