@@ -101,7 +101,7 @@ class Seed000(Estimator):
         self._coarse = True
         self._sum_th = np.zeros(3)
         self._sum_dv = np.zeros(3)
-        self._t0: int | None = None
+        self._gaps: list[np.ndarray] = []
         self._last = 0
         self._next_out = 0
         self._epoch = 0
@@ -181,8 +181,8 @@ class Seed000(Estimator):
     def _coarse_step(self, inputs: DutInputs, imu: np.ndarray) -> EstimatorOutput:
         """Sum the increments at rest; output "aligning" epochs at the surveyed position."""
         if len(imu):
-            if self._t0 is None:
-                self._t0 = 0
+            if len(imu) > 1:
+                self._gaps.append(np.diff(imu["t_ns"]))
             self._sum_th += imu["dtheta"].sum(axis=0)
             self._sum_dv += imu["dvel"].sum(axis=0)
             self._last = int(imu["t_ns"][-1])
@@ -227,6 +227,8 @@ class Seed000(Estimator):
         st[K.S_ALIGN_END] = round(c["alignment"] * 1e9)
         st[K.S_P0 : K.S_P0 + 3] = lat, lon, h
         st[K.S_MODE] = K.MODE_ALIGNING
+        gaps = np.concatenate(self._gaps) if self._gaps else np.zeros(0)
+        st[K.S_TNOM] = float(np.median(gaps)) * 1e-9 if len(gaps) else 0.005
         # coarse errors: level from the accelerometer noise and bias, heading from the
         # gyro noise over the coarse time (generous; the fine alignment shrinks them)
         g = 9.8

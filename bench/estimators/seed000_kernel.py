@@ -54,7 +54,7 @@ S_DV, S_DOK, S_DLOW, S_DT = 47, 48, 49, 50  # latest Doppler: speed, valid, low 
 S_NEXT_OUT, S_EPOCH, S_ALIGN_END, S_NEXT_MU = 51, 52, 53, 54
 S_DR_ON, S_MODE = 55, 56
 S_P0 = 57  # 3: the surveyed position (lat, lon, h) held in the alignment
-S_UPDATES, S_EXCL = 60, 61
+S_UPDATES, S_EXCL, S_TNOM = 60, 61, 62  # updates made, Doppler excluded, nominal IMU interval (s)
 ST_SIZE = 64
 
 # prm layout
@@ -302,6 +302,8 @@ def run_step(
         st[S_TLAST] = t
         if T <= 0.0:
             continue
+        if st[S_TNOM] * 1.5 < T:  # frames lost on the wire: their increments are lost with them
+            T = st[S_TNOM]
         for i in range(3):
             th[i] = dth[k, i] - st[S_BG + i] * T
             dv[i] = dvel[k, i] - st[S_BA + i] * T
