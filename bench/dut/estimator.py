@@ -184,6 +184,7 @@ _FACTORIES: dict[str, Callable[[], Estimator]] = {}
 _BUILTIN = {
     "decode_only": "bench.estimators.basic:DecodeOnly",
     "dead_reckoning": "bench.estimators.basic:DeadReckoning",
+    "seed000": "bench.estimators.seed000:Seed000",
 }
 
 
