@@ -2,16 +2,14 @@
 
 :func:`shortened` writes a copy of a case file of ``test_cases/`` that runs only the
 first ``duration_s`` of its drive (``[scenario] duration``, with the ``[case] shortened``
-reason the schema asks for), its scenario path made absolute; ``can`` replaces the CAN
-link, ``in_process`` turns the external case into its in-process twin (the same
-estimator and configuration, called directly in 10 ms steps). Text edits of the file as
-it is shipped, so what runs is the shipped case, not a rewrite of it.
+reason the schema asks for), its scenario path made absolute; ``convergence_s`` moves
+the converged window into the shortened run; ``can`` replaces the CAN link. Text edits
+of the file as it is shipped, so what runs is the shipped case, not a rewrite of it.
 """
 
 from __future__ import annotations
 
 import re
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -32,24 +30,18 @@ def _sub(pattern: str, repl: str, text: str, what: str) -> str:
     return new
 
 
-def shortened(src: Path, folder: Path, *, duration_s: float, can: str | None = None,
-              in_process: bool = False) -> Path:
+def shortened(src: Path, folder: Path, *, duration_s: float, convergence_s: float | None = None,
+              can: str | None = None) -> Path:
     """A copy of case ``src`` in ``folder`` that runs ``duration_s`` (see the module docstring)."""
     text = src.read_text()
     text = _sub(r'^script = "scenarios/', f'script = "{CASES}/scenarios/', text, "[scenario] script")
     text = _sub(r"^\[scenario\]$", f'[scenario]\nduration = "{duration_s:g} s"', text, "[scenario] table")
     text = _sub(r"^\[case\]$", '[case]\nshortened = "a test: alignment and the first minutes of driving"', text,
                 "[case] table")
+    if convergence_s is not None:
+        text = _sub(r'^convergence = ".*"$', f'convergence = "{convergence_s:g} s"', text, "[scoring] convergence")
     if can is not None:
         text = _sub(r"^can = \{.*\}$", f"can = {can}", text, "[dut.links] can")
-    if in_process:
-        cmd = tomllib.loads(src.read_text())["dut"]["command"]
-        name = re.search(r"--estimator (\S+)", cmd)
-        assert name, cmd
-        text = _sub(r'^kind = "external"$', f'kind = "in_process"\nname = "{name.group(1)}"', text, "[dut] kind")
-        text = _sub(r"^command = .*\n", "", text, "[dut] command")
-        text = _sub(r"^startup_timeout = .*\n", "", text, "[dut] startup_timeout")
-        text = _sub(r'^step = "1 s"$', 'step = "10 ms"', text, "[clock] step")
     out = folder / src.name
     out.write_text(text)
     return out
