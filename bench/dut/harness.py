@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import select
 import signal
 import sys
 from collections.abc import Sequence
@@ -74,6 +75,7 @@ class Harness:
         self.stop = False
         self.steps = 0
         self.handled_ns = -1  # the latest BENCH_TIME the estimator was stepped to
+        self._fds = _readable_fds(self.can, self.imu, self.gnss)
 
     def close(self) -> None:
         """Close the links and the estimator."""
@@ -112,10 +114,18 @@ class Harness:
         waits for this side to read them before it sends the step's BENCH_TIME. They are
         read again once the CAN frames are in, before any BENCH_TIME is handled (ICD 6),
         and never waited for: the bench makes every byte due by T readable before it sends
-        BENCH_TIME(T).
+        BENCH_TIME(T). With nothing pending it waits up to ``timeout`` for the first of the
+        CAN socket and the serial lines to become readable (a timed CAN receive where a
+        link has no file descriptor), so the bench's serial writes are taken as they come
+        (waiting on CAN alone left them up to 5 ms in a full pty, twice per 1 s step).
         """
         serial = self._read_serial()
-        got = self.can.drain(timeout=0.0 if serial else timeout)
+        if not serial and self._fds:
+            # wait for whatever the bench sends first: in a coarse lockstep step it writes
+            # the serial bytes, more than a pty holds, before any CAN frame
+            select.select(self._fds, [], [], timeout)
+            serial = self._read_serial()
+        got = self.can.drain(timeout=0.0 if serial or self._fds else timeout)
         if len(got) == 0:
             return
         frames = CanBatch.concat([self._carry, got]) if len(self._carry) else got
@@ -194,6 +204,19 @@ class Harness:
             except HungUpError as exc:
                 return str(exc)
         return "stopped on a signal"
+
+
+def _readable_fds(can, *serial) -> list[int] | None:
+    """File descriptors that become readable when the bench sends on any line (the CAN
+    socket and the serial ports), or None where a link has none (a pyserial URL, a
+    python-can interface without one): then the wait is a timed CAN receive."""
+    fds = []
+    for obj in (getattr(can.bus, "sock", can.bus), *(getattr(link, "port", None) for link in serial)):
+        try:
+            fds.append(int(obj.fileno()))
+        except (AttributeError, NotImplementedError, OSError, ValueError, TypeError):
+            return None
+    return fds
 
 
 def main(argv: Sequence[str] | None = None) -> int:
