@@ -87,24 +87,36 @@ class Harness:
         self.gnss.close()
 
     def _read_serial(self) -> int:
-        """Read and decode what the serial lines hold, without waiting; returns the bytes
-        read."""
+        """Read and decode everything the serial lines hold, without waiting; returns the
+        bytes read.
+
+        Each line is polled before each read and read until it holds nothing: after a
+        read that empties a full line discipline (4095 bytes) the kernel moves the rest of
+        the pty's buffer in later, and FIONREAD, which the read goes by, does not count it
+        until a poll (or the kernel's worker) has moved it. Without the poll a loaded
+        machine handled BENCH_TIMEs without the step's last IMU frames, bytes the bench
+        had written before it sent them.
+        """
         from bench.frames import SerialBatch
 
         total = 0
-        if self._serial_fds:
-            # a poll runs the tty layer's pending work: after a read that emptied a full
-            # line discipline the kernel moves the rest in later, and FIONREAD (what the
-            # read takes) does not count it until then (a loaded machine handled a
-            # BENCH_TIME without the step's last IMU frames, bytes the bench had written)
-            select.select(self._serial_fds, [], [], 0)
-        for link, name in ((self.imu, "imu"), (self.gnss, "gnss")):
-            try:
-                data = link.read(0.0, 1 << 20)
-            except (OSError, LinkError) as exc:  # EIO: the bench's end of the pty was closed
-                raise HungUpError(f"the bench hung up the {name} line ({exc})") from exc
-            if not data:
+        for link, name, fd in ((self.imu, "imu", self._serial_fds[:1]), (self.gnss, "gnss", self._serial_fds[1:])):
+            parts = []
+            while True:
+                if fd:
+                    select.select(fd, [], [], 0)
+                try:
+                    data = link.read(0.0, 1 << 20)
+                except (OSError, LinkError) as exc:  # EIO: the bench's end of the pty was closed
+                    raise HungUpError(f"the bench hung up the {name} line ({exc})") from exc
+                if not data:
+                    break
+                parts.append(data)
+                if not fd:  # no descriptor to poll (a pyserial URL): what was waiting
+                    break
+            if not parts:
                 continue
+            data = b"".join(parts)
             total += len(data)
             batch = SerialBatch(np.array([0]), np.array([0, len(data)]), data)
             if name == "imu":
