@@ -3,7 +3,7 @@
 In a coarse lockstep step the bench writes more serial bytes than a pty holds before it
 sends any CAN frame, and waits for the DUT to read them. A harness that waited on the CAN
 socket alone left them in the full pty until its CAN wait timed out (5 ms, twice per
-1 s step of S000: a fifth of the external run's time). Here the harness, on a pty and
+1 s step of S000). Here the harness, on a pty and
 udp_multicast (in a network namespace), is idle in ``poll`` with a long timeout and no
 CAN frame ever comes: the IMU frames written while it waits are read in that same call.
 No sleep: the bytes are written when the harness is about to wait (its ``select``).
