@@ -93,15 +93,16 @@ def _with_config(case: TestCase, **config) -> TestCase:
 
 
 def timed(case: TestCase, out: Path, duration_s: float, trajectories: dict) -> tuple[str, float]:
-    """One run of ``case`` (seed 1): its status and wall time, s (the drive's trajectory
-    built once, outside the timed runs)."""
+    """One run of ``case`` (seed 1): its status (with the reason when it did not complete)
+    and wall time, s (the drive's trajectory built once, outside the timed runs)."""
     spec = spec_from_case(case, 1, out)
     if "s000" not in trajectories:
         trajectories["s000"] = spec.scenario.trajectory()
     spec = dataclasses.replace(spec, duration_ns=round(duration_s * 1e9), trajectory=trajectories["s000"])
     t = time.perf_counter()
     res = run(spec)
-    return res.status, time.perf_counter() - t
+    el = time.perf_counter() - t
+    return (res.status if res.status == "complete" else f"{res.status}: {res.reason}"), el
 
 
 def table(title: str, rows: list[tuple[str, TestCase]], out: Path, duration_s: float, target: float) -> None:
@@ -110,6 +111,11 @@ def table(title: str, rows: list[tuple[str, TestCase]], out: Path, duration_s: f
     base = None
     for label, case in rows:
         status, el = timed(case, out / label.replace(" ", "_"), duration_s, trajectories)
+        if status != "complete":  # a run that did not go to its end measures nothing
+            print(f"   {label:<32} NOT MEASURED, the run did not complete ({status})")
+            if label == "decode_only":
+                base = None
+            continue
         x = duration_s / el
         if label == "decode_only":
             base = el
