@@ -9,6 +9,10 @@ the time, the process id and the command line:
 * otherwise, or when that folder cannot be written, ``bench-error.log`` in the user's
   state folder (``$XDG_STATE_HOME/bench``, default ``~/.local/state/bench``), then in
   ``<temp dir>/bench-<uid>``.
+
+The run engine also appends here, in the recording's folder, the traceback of an
+in-process estimator that raised (the DUT's bug, not the bench's: its header line says
+``DUT error``).
 """
 
 from __future__ import annotations

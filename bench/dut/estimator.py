@@ -20,18 +20,26 @@ Minimal example::
             ...                                        # lat, lon, h, vel_n, attitude
             return EstimatorOutput(sol)
 
-Register it under a name with :func:`register_estimator` or the entry-point group
-``bench.estimators`` (name = estimator name, value = a factory taking no arguments); test
-cases name it in ``[dut] name``.
+The bench fills ``rx_ns`` and the epoch counters of what it returns (whatever the
+estimator put there is overwritten: :mod:`bench.dut.epochs`); an epoch whose time of
+validity is later than the step time, or an exception, ends the run as a DUT error.
+
+Test cases name an estimator in ``[dut] name``: a name registered with
+:func:`register_estimator` or in the entry-point group ``bench.estimators`` (name =
+estimator name, value = a factory taking no arguments), or ``package.module:Class`` (an
+:class:`Estimator` subclass or a factory returning one), imported from beside the test
+case file first, then from the Python path. docs/estimators.md, "Writing your own
+estimator".
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from importlib import import_module
 from importlib.metadata import entry_points
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -119,10 +127,15 @@ class DutInputs:
     epoch_utc_ns: int | None = None
 
     def message(self, name: str) -> dict[str, np.ndarray]:
-        """Columns of one CAN message (empty arrays when none arrived)."""
-        if name in self.can and len(self.can[name].get("rx_ns", ())):
-            return self.can[name]
-        return {"rx_ns": np.zeros(0, np.int64)}
+        """Columns of one CAN message of the bench: every field of it, zero-length arrays of
+        the decoder's dtype when none arrived in this step (KeyError for a name that is not
+        a bench message)."""
+        cols = self.can.get(name)
+        if cols is not None:
+            return cols
+        from bench.wire.receive import empty_columns  # the decoder's own columns (cantools: only when needed)
+
+        return empty_columns(name)
 
     def count(self) -> int:
         """Frames, fix epochs and CAN messages in this step."""
@@ -148,17 +161,27 @@ class DutInputs:
 
     @property
     def commands(self) -> np.ndarray:
-        """BENCH_CMD codes (1 grid frame, 2 geographic frame, 3 reset filter) in arrival order."""
-        return self.message("BENCH_CMD").get("command", np.zeros(0, np.int64))
+        """BENCH_CMD codes in arrival order: :data:`~bench.wire.icd.CMD_SWITCH_TO_GRID`,
+        :data:`~bench.wire.icd.CMD_SWITCH_TO_GEOGRAPHIC`, :data:`~bench.wire.icd.CMD_RESET_FILTER`."""
+        return self.message("BENCH_CMD")["command"]
 
 
 @dataclass
 class EstimatorOutput:
     """Navigation epochs of one step: NAV_SOLUTION records and, for the same epochs,
-    NAV_QUALITY records (optional). ``rx_ns`` is filled by the bench."""
+    NAV_QUALITY records (optional), each with time of validity ``t_ns`` up to the step time.
+    ``rx_ns`` and ``epoch`` are filled by the bench (:mod:`bench.dut.epochs`)."""
 
     solutions: np.ndarray = field(default_factory=lambda: np.zeros(0, NAV_SOLUTION_DTYPE))
     qualities: np.ndarray = field(default_factory=lambda: np.zeros(0, NAV_QUALITY_DTYPE))
+
+    def __post_init__(self) -> None:
+        for what, value, kind in (("solutions", self.solutions, "NAV_SOLUTION"),
+                                  ("qualities", self.qualities, "NAV_QUALITY")):
+            if not isinstance(value, np.ndarray) or value.dtype.names is None or value.ndim != 1:
+                found = f"an array of {value.dtype}, shape {value.shape}" if isinstance(value, np.ndarray) \
+                    else f"a {type(value).__name__}"
+                raise TypeError(f"EstimatorOutput.{what}: expected a 1-D array of {kind} records, found {found}")
 
 
 class Estimator(ABC):
@@ -199,8 +222,39 @@ def known_estimators() -> list[str]:
     return sorted(names)
 
 
-def create_estimator(name: str, config: Mapping[str, Any] | None = None) -> Estimator:
-    """A configured estimator by name (registered, entry point, or built in)."""
+def create_estimator(
+    name: str, config: Mapping[str, Any] | None = None, *, search: Sequence[str | Path | None] = ()
+) -> Estimator:
+    """A configured estimator by name: registered, entry point, built in, or
+    ``package.module:Class`` (the module looked for in the folders ``search`` first, then on
+    the Python path).
+
+    Raises
+    ------
+    ConfigError
+        (key ``dut.name``) No such estimator: an unknown name, a module or attribute that is
+        not there, or something that is not an :class:`Estimator` subclass or factory.
+    """
+    if ":" in name:
+        from bench.dut.loading import from_module
+
+        factory = from_module(name, [Path(d) for d in search if d is not None])
+    else:
+        factory = _registered(name)
+    est = factory()
+    if not isinstance(est, Estimator):
+        raise ConfigError(
+            f"the estimator {name!r} made a {type(est).__module__}.{type(est).__qualname__}, not a "
+            "bench.dut.Estimator",
+            key="dut.name",
+        )
+    if not est.name:
+        est.name = name
+    est.configure(dict(config or {}))
+    return est
+
+
+def _registered(name: str) -> Callable[[], Estimator]:
     if name not in _FACTORIES:
         for ep in entry_points(group=ENTRY_POINT_GROUP):
             if ep.name == name:
@@ -210,17 +264,28 @@ def create_estimator(name: str, config: Mapping[str, Any] | None = None) -> Esti
         mod, _, attr = _BUILTIN[name].partition(":")
         _FACTORIES[name] = getattr(import_module(mod), attr)
     if name not in _FACTORIES:
-        raise ConfigError(f"no estimator {name!r}; known: {', '.join(known_estimators())}", key="dut.name")
-    est = _FACTORIES[name]()
-    est.configure(dict(config or {}))
-    return est
+        raise ConfigError(
+            f"no estimator {name!r}; known: {', '.join(known_estimators())}, or package.module:Class",
+            key="dut.name",
+        )
+    return _FACTORIES[name]
+
+
+def first_refused(parts: list[np.ndarray], rx: list[tuple[int, int]], dtype: np.dtype) -> int | None:
+    """The step time of the first part :func:`stack_outputs` refuses (None: none is)."""
+    for part, (t, n) in zip(parts, rx, strict=True):
+        try:
+            stack_outputs([part], [(t, n)], dtype)
+        except ValueError:
+            return t
+    return None
 
 
 def stack_outputs(parts: list[np.ndarray], rx: list[tuple[int, int]], dtype: np.dtype) -> np.ndarray | None:
     """The records of a window's steps in one array, ``rx_ns`` set to their step time."""
     if not parts:
         return None
-    if all(part.dtype == dtype for part in parts):  # the usual case: the bytes joined (10x np.concatenate)
+    if all(isinstance(part, np.ndarray) and part.dtype == dtype for part in parts):  # usual: the bytes joined
         out = np.frombuffer(b"".join([part.tobytes() for part in parts]), dtype).copy()
         times, counts = zip(*rx, strict=True)
         out["rx_ns"] = np.repeat(np.array(times, np.int64), np.array(counts))
@@ -228,6 +293,8 @@ def stack_outputs(parts: list[np.ndarray], rx: list[tuple[int, int]], dtype: np.
     out = np.zeros(sum(n for _, n in rx), dtype)
     a = 0
     for part in parts:
+        if not isinstance(part, np.ndarray) or part.dtype.names is None:
+            raise ValueError(f"estimator output is not of the NAV record layout: expected records, found {part!r:.80}")
         b = a + len(part)
         if part.dtype == dtype:
             out[a:b] = part  # same layout: a plain copy, no per-field promotion

@@ -22,6 +22,16 @@ variable, it takes every bench's frames.
 It also stops by itself when the bench hangs up its serial lines (a pty slave reads EIO
 once the bench's master end is closed): a bench killed with SIGKILL, which cannot stop
 its DUT, does not leave this process behind.
+
+The harness fills what the bench fills in process: ``rx_ns`` and the epoch counters
+(:mod:`bench.dut.epochs`). An estimator that raises (its traceback on stderr), returns
+an epoch later than the step time or something that is not an
+:class:`~bench.dut.estimator.EstimatorOutput` ends the harness with exit code 1 and a last
+line saying so (``harness: the estimator 'x' raised at bench time 1.000 s: ...``), after
+the epochs and DUT_READY of the steps before were sent; the bench then sees the DUT exit.
+``--estimator`` takes what ``[dut] name`` takes (``package.module:Class`` included, from
+the working directory, which is the test case's folder); one that names no estimator
+exits with code 2 and a line naming the problem.
 """
 
 from __future__ import annotations
@@ -32,14 +42,16 @@ import os
 import select
 import signal
 import sys
+import traceback
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from bench.dut.estimator import CanView, DutInputs, create_estimator, stack_outputs
+from bench.dut.epochs import EpochNumbering, first_late, late_message
+from bench.dut.estimator import CanView, DutInputs, EstimatorOutput, create_estimator, first_refused, stack_outputs
 from bench.dut.inputs import InputDecoder
-from bench.errors import LinkError
+from bench.errors import CodecError, ConfigError, LinkError
 from bench.frames import CanBatch
 from bench.topics import NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE
 from bench.transport.can_link import CanConfig, open_can_link
@@ -49,7 +61,7 @@ from bench.wire.can import CanEncoder, codec
 from bench.wire.imu import IMU_SAMPLE_DTYPE
 from bench.wire.nmea import GNSS_FIX_DTYPE
 
-__all__ = ["Harness", "HungUpError", "main"]
+__all__ = ["Harness", "HungUpError", "EstimatorError", "main"]
 
 _BENCH_TIME = codec("BENCH_TIME")
 _READY_ID = codec("DUT_READY").frame_id
@@ -59,11 +71,21 @@ class HungUpError(Exception):
     """The bench closed a serial line (the far end of the pty is gone)."""
 
 
+class EstimatorError(Exception):
+    """The estimator raised, or returned what a DUT may not send (the message says which);
+    ``traceback`` is the estimator's own, if it raised."""
+
+    def __init__(self, message: str, traceback_text: str = ""):
+        super().__init__(message)
+        self.traceback = traceback_text
+
+
 class Harness:
     """The DUT side of a run around one estimator (see the module docstring)."""
 
     def __init__(self, estimator_name: str, config: dict, *, can: CanConfig, imu_port: str, gnss_port: str):
         self.estimator = create_estimator(estimator_name, config)
+        self.numbering = EpochNumbering()
         self.can = open_can_link(can, run_tag=os.environ.get(RUN_TAG_ENV, ""))  # the bench's run: its frames only
         self.imu = open_serial_link(SerialConfig(port=imu_port, baudrate=460_800))
         self.gnss = open_serial_link(SerialConfig(port=gnss_port, baudrate=115_200))
@@ -163,7 +185,6 @@ class Harness:
         bt = decoded.can.get("BENCH_TIME")
         if bt is None or len(bt["rx_ns"]) == 0:
             return
-        out: list[CanBatch] = []
         pos, times, locks = bt["rx_ns"], bt["time_ns"], bt["lockstep"].tolist()
         # cut the CAN columns at the BENCH_TIME positions, the serial samples at the times
         cuts = {k: np.searchsorted(cols["rx_ns"], np.concatenate([[-1], pos]), side="right")
@@ -173,11 +194,22 @@ class Harness:
         for name, cols in decoded.can.items():  # handed over at the step: rx_ns = its time
             c = cuts[name]
             cols["rx_ns"][c[0] : c[-1]] = np.repeat(times, np.diff(c))
+        sols, quals, failure = self._step(decoded.can, cuts, times, ci, cg)
+        self._answer(sols, quals, failure, times, locks)
+
+    def _step(
+        self, can: dict[str, dict[str, np.ndarray]], cuts: dict[str, np.ndarray], times: np.ndarray,
+        ci: np.ndarray, cg: np.ndarray,
+    ) -> tuple[list[np.ndarray], list[np.ndarray], tuple[EstimatorError, int] | None]:
+        """Step the estimator at each new BENCH_TIME of a poll: its records of every step
+        (``rx_ns`` = the step time) and, if it failed, why and at which step."""
         imu_lo = gnss_lo = 0
         sols: list[np.ndarray] = []
         quals: list[np.ndarray] = []
         s_rx: list[tuple[int, int]] = []
         q_rx: list[tuple[int, int]] = []
+        failure: tuple[EstimatorError, int] | None = None
+        est = self.estimator.name
         for k, t in enumerate(times.tolist()):
             if t <= self.handled_ns:
                 # a BENCH_TIME that does not advance (the start-up rounds repeat the first
@@ -191,8 +223,21 @@ class Harness:
             imu["rx_ns"] = t
             gnss["rx_ns"] = t
             imu_lo, gnss_lo = int(ci[k]), int(cg[k])
-            inputs = DutInputs(t, imu, gnss, CanView(decoded.can, lo, hi), self.decoder.epoch_utc_ns)
-            res = self.estimator.step(inputs)
+            inputs = DutInputs(t, imu, gnss, CanView(can, lo, hi), self.decoder.epoch_utc_ns)
+            try:
+                res = self.estimator.step(inputs)
+            except Exception as exc:  # the estimator failed: the steps before are answered, then the end
+                failure = EstimatorError(
+                    f"the estimator {est!r} raised at bench time {t / 1e9:.3f} s: {type(exc).__name__}: {exc}",
+                    "".join(traceback.format_exception(exc)),
+                ), t
+                break
+            if not isinstance(res, EstimatorOutput):
+                failure = EstimatorError(
+                    f"the estimator {est!r} returned a {type(res).__name__} at bench time {t / 1e9:.3f} s, "
+                    "not an EstimatorOutput"
+                ), t
+                break
             self.steps += 1
             if len(res.solutions):
                 sols.append(res.solutions)
@@ -201,20 +246,53 @@ class Harness:
                 quals.append(res.qualities)
                 q_rx.append((t, len(res.qualities)))
         self._imu, self._gnss = self._imu[imu_lo:], self._gnss[gnss_lo:]
-        # encode the poll's answers at once: each step's NAV frames, then its DUT_READY
-        sol = stack_outputs(sols, s_rx, NAV_SOLUTION_DTYPE)
-        qual = stack_outputs(quals, q_rx, NAV_QUALITY_DTYPE)
-        if sol is not None:
-            out.append(self.encoder.encode_records("NAV_SOLUTION", sol))
-        if qual is not None:
-            out.append(self.encoder.encode_records("NAV_QUALITY", qual))
+        try:
+            sol = stack_outputs(sols, s_rx, NAV_SOLUTION_DTYPE)
+            qual = stack_outputs(quals, q_rx, NAV_QUALITY_DTYPE)
+        except ValueError as exc:  # records of another layout: the steps before it are answered
+            bad = min(t for t in (first_refused(sols, s_rx, NAV_SOLUTION_DTYPE),
+                                  first_refused(quals, q_rx, NAV_QUALITY_DTYPE)) if t is not None)
+            ks = [k for k, (t, _) in enumerate(s_rx) if t < bad]
+            kq = [k for k, (t, _) in enumerate(q_rx) if t < bad]
+            sol = stack_outputs([sols[k] for k in ks], [s_rx[k] for k in ks], NAV_SOLUTION_DTYPE)
+            qual = stack_outputs([quals[k] for k in kq], [q_rx[k] for k in kq], NAV_QUALITY_DTYPE)
+            failure = EstimatorError(f"the estimator {est!r} at bench time {bad / 1e9:.3f} s: {exc}"), bad
+        late = first_late(sol, qual)
+        if late is not None and (failure is None or late[1] < failure[1]):  # an epoch from the future
+            failure = EstimatorError(late_message(est, *late)), late[1]
+            sol, qual = (r[r["rx_ns"] < late[1]] if r is not None else None for r in (sol, qual))
+        return [r for r in (sol,) if r is not None and len(r)], [r for r in (qual,) if r is not None and len(r)], \
+            failure
+
+    def _answer(
+        self, sols: list[np.ndarray], quals: list[np.ndarray], failure: tuple[EstimatorError, int] | None,
+        times: np.ndarray, locks: list[int],
+    ) -> None:
+        """Send a poll's answers at once, each step's NAV frames (numbered) then its
+        DUT_READY, up to the step that failed; then raise its failure."""
+        sol = sols[0] if sols else None
+        qual = quals[0] if quals else None
+        self.numbering.number(sol, qual)
+        out: list[CanBatch] = []
+        try:
+            if sol is not None:
+                out.append(self.encoder.encode_records("NAV_SOLUTION", sol))
+            if qual is not None:
+                out.append(self.encoder.encode_records("NAV_QUALITY", qual))
+        except CodecError as exc:  # values no NAV frame can carry: nothing of this poll is sent
+            msg = f"the estimator {self.estimator.name!r} output does not fit NAV frames: {exc}"
+            failure, out = (EstimatorError(msg), int(times[0])), []
         ready = times[np.array(locks, dtype=bool)] if len(locks) else times[:0]
+        if failure is not None:
+            ready = ready[ready < failure[1]]
         if len(ready):
             out.append(self.encoder.encode("DUT_READY", ready, time_ns=ready))
         if out:
             batch = CanBatch.concat(out)
             kind = (batch.can_id == _READY_ID).astype(np.int8)
             self.can.send_many(batch.take(np.lexsort((kind, batch.t_ns))))
+        if failure is not None:
+            raise failure[0]
 
     def serve(self) -> str:
         """Run until SIGTERM (or SIGINT) or until the bench hangs up; returns why it stopped."""
@@ -242,7 +320,7 @@ def _descriptors(*objs) -> list[int]:
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line of the harness (see the module docstring)."""
     p = argparse.ArgumentParser(prog="python -m bench.dut.harness", description=__doc__.split("\n\n")[0])
-    p.add_argument("--estimator", required=True, help="registered estimator name")
+    p.add_argument("--estimator", required=True, help="estimator name, or package.module:Class")
     p.add_argument("--can-interface", default="virtual")
     p.add_argument("--can-channel", default=None)
     p.add_argument("--can-port", type=int, help="udp_multicast port (the bench's {can_port}; 0: 43113)")
@@ -258,7 +336,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.can_interface_address:
             options["interface_address"] = args.can_interface_address
     can = CanConfig(interface=args.can_interface, channel=args.can_channel, options=options)
-    harness = Harness(args.estimator, config, can=can, imu_port=args.imu, gnss_port=args.gnss)
+    try:
+        harness = Harness(args.estimator, config, can=can, imu_port=args.imu, gnss_port=args.gnss)
+    except ConfigError as exc:  # no such estimator, or a configuration it refuses
+        print(f"harness: --estimator {args.estimator}: {exc}", file=sys.stderr, flush=True)
+        return 2
+    except Exception as exc:  # the estimator (or a link) failed to start
+        traceback.print_exc()
+        print(f"harness: could not start {args.estimator!r}: {type(exc).__name__}: {exc}", file=sys.stderr,
+              flush=True)
+        return 1
 
     def _stop(signum, frame):
         harness.stop = True
@@ -270,14 +357,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"gnss {args.gnss}",
         flush=True,
     )
-    why = "crashed"
+    why, code = "crashed", 0
     try:
         why = harness.serve()
+    except EstimatorError as exc:
+        if exc.traceback:
+            print(exc.traceback, end="", file=sys.stderr, flush=True)
+        why, code = str(exc), 1
     finally:
         harness.close()
         print(f"harness: {why}; stopped after {harness.steps} steps; input rejected: "
               f"{json.dumps(harness.decoder.tally.as_dict())}; link {json.dumps(harness.can.stats())}", flush=True)
-    return 0
+    return code
 
 
 if __name__ == "__main__":

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from bench.dut import MODE_ALIGNING, MODE_DOPPLER, MODE_ODOMETER, SOLUTION_VALID
 from bench.dut.estimator import DutInputs, Estimator, EstimatorOutput
 from bench.errors import ConfigError
 from bench.estimators._dr_kernel import propagate
@@ -35,9 +36,6 @@ from bench.topics import NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE
 from bench.units import quantity
 
 __all__ = ["DecodeOnly", "DeadReckoning"]
-
-MODE_ALIGNING, MODE_INERTIAL, MODE_DOPPLER, MODE_ODOMETER = 0, 1, 2, 3
-
 
 def _output_period(config: Mapping[str, Any]) -> int:
     rate = quantity(config.get("output_rate", 100.0), "frequency", "Hz", key="dut.config.output_rate")
@@ -57,7 +55,6 @@ class DecodeOnly(Estimator):
     def __init__(self) -> None:
         self.period_ns = 10_000_000
         self.next_ns = 0
-        self.epoch = 0
         self.received = 0
 
     def configure(self, config: Mapping[str, Any]) -> None:
@@ -69,17 +66,14 @@ class DecodeOnly(Estimator):
             return EstimatorOutput()
         if inputs.t_ns < self.next_ns + self.period_ns:  # one epoch (the usual step): no arrays to build
             sol = np.zeros(1, NAV_SOLUTION_DTYPE)
-            sol["t_ns"], sol["mode"], sol["epoch"] = self.next_ns, MODE_ALIGNING, self.epoch
+            sol["t_ns"], sol["mode"] = self.next_ns, MODE_ALIGNING
             self.next_ns += self.period_ns
-            self.epoch = (self.epoch + 1) % 256
             return EstimatorOutput(sol)
         times = np.arange(self.next_ns, inputs.t_ns + 1, self.period_ns, dtype=np.int64)
         self.next_ns = int(times[-1]) + self.period_ns
         sol = np.zeros(len(times), NAV_SOLUTION_DTYPE)
         sol["t_ns"] = times
         sol["mode"] = MODE_ALIGNING
-        sol["epoch"] = (self.epoch + np.arange(len(times))) % 256
-        self.epoch = (self.epoch + len(times)) % 256
         return EstimatorOutput(sol)
 
 
@@ -100,7 +94,6 @@ class DeadReckoning(Estimator):
         self._speed = 0.0
         self._source = MODE_DOPPLER
         self._next_out = 0
-        self._epoch = 0
 
     def configure(self, config: Mapping[str, Any]) -> None:
         self.period_ns = _output_period(config)
@@ -174,13 +167,7 @@ class DeadReckoning(Estimator):
         sol["t_ns"] = times
         sol["lat"], sol["lon"], sol["h"] = self.position
         sol["mode"] = MODE_ALIGNING
-        sol["epoch"] = self._epochs(len(times))
         return EstimatorOutput(sol)
-
-    def _epochs(self, n: int) -> np.ndarray:
-        e = (self._epoch + np.arange(n)) % 256
-        self._epoch = (self._epoch + n) % 256
-        return e
 
     def _outputs(self, t_ns: np.ndarray, states: np.ndarray) -> EstimatorOutput:
         """Epochs on the output grid, each from the IMU frame at that time."""
@@ -201,13 +188,11 @@ class DeadReckoning(Estimator):
             [np.sin(psi) * np.cos(theta), np.cos(psi) * np.cos(theta), np.sin(theta)], axis=-1
         )
         sol["mode"] = self._source
-        sol["valid"] = 1
-        sol["epoch"] = self._epochs(n)
+        sol["valid"] = SOLUTION_VALID
         qual = np.zeros(n, NAV_QUALITY_DTYPE)
         qual["t_ns"] = t
         dist = self._state[11] if self._state is not None else 0.0
         qual["sigma_pos"] = np.array([1.0, 1.0, 2.0]) + 2e-3 * dist  # 0.2 % of distance travelled
         qual["sigma_vel"] = 0.05
         qual["sigma_att"] = np.radians([1.0, 0.5, 0.5]) / 60.0
-        qual["epoch"] = sol["epoch"]
         return EstimatorOutput(sol, qual)

@@ -42,6 +42,7 @@ __all__ = [
     "radii",
     "rates",
     "ins_error_matrix",
+    "scale_factor_columns",
     "discretize",
     "euler_jacobian",
     "position_difference",
@@ -161,6 +162,19 @@ def ins_error_matrix(F: np.ndarray, lat: float, h: float, v: np.ndarray, f_n: np
     F[DR + 0, DR + 2] = -ve / rnh
     F[DR + 1, DR + 1] = vu / rmh
     F[DR + 1, DR + 2] = -vn / rmh
+
+
+@njit(cache=True)
+def scale_factor_columns(F: np.ndarray, col: int, C: np.ndarray, w_b: np.ndarray, f_b: np.ndarray) -> None:
+    """Optional scale-factor states: fill ``F[:, col:col+6]`` for gyro (3) then
+    accelerometer (3) scale-factor errors (sensed = (1 + s) true, per axis), given the
+    body rate ``w_b`` (rad/s) and specific force ``f_b`` (m/s^2) over the interval:
+    ``phi' += -C diag(w_b) s_g``, ``dv' += C diag(f_b) s_a``. The states themselves are
+    random constants (their rows stay zero)."""
+    for i in range(3):
+        for j in range(3):
+            F[PHI + i, col + j] = -C[i, j] * w_b[j]
+            F[DV + i, col + 3 + j] = C[i, j] * f_b[j]
 
 
 @njit(cache=True)

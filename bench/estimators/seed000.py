@@ -37,12 +37,11 @@ from typing import Any
 import numpy as np
 
 from bench.config.table import check_keys
-from bench.dut.estimator import DutInputs, Estimator, EstimatorOutput
+from bench.dut import MODE_ALIGNING, NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE, DutInputs, Estimator, EstimatorOutput
 from bench.errors import ConfigError
 from bench.estimators import seed000_kernel as K  # noqa: N812 - the kernel layout constants
 from bench.nav.alignment import coarse_align
 from bench.nav.rotation import dcm_to_quat
-from bench.topics import NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE
 from bench.units import quantity
 
 __all__ = ["Seed000", "CONFIG_KEYS"]
@@ -104,7 +103,6 @@ class Seed000(Estimator):
         self._gaps: list[np.ndarray] = []
         self._last = 0
         self._next_out = 0
-        self._epoch = 0
         self._out_ns = 10_000_000
 
     # -- configuration -------------------------------------------------------------------
@@ -202,12 +200,9 @@ class Seed000(Estimator):
         sol = np.zeros(len(times), NAV_SOLUTION_DTYPE)
         sol["t_ns"] = times
         sol["lat"], sol["lon"], sol["h"] = self.position
-        sol["mode"] = K.MODE_ALIGNING
-        sol["epoch"] = (self._epoch + np.arange(len(times))) % 256
-        self._epoch = (self._epoch + len(times)) % 256
+        sol["mode"] = MODE_ALIGNING
         qual = np.zeros(len(times), NAV_QUALITY_DTYPE)
         qual["t_ns"] = times
-        qual["epoch"] = sol["epoch"]
         qual["sigma_pos"] = self.cfg["position_sigma"]
         return EstimatorOutput(sol, qual)
 
@@ -223,10 +218,9 @@ class Seed000(Estimator):
         st[K.S_PHASE] = 1.0
         st[K.S_TLAST] = t_ns
         st[K.S_NEXT_OUT] = self._next_out
-        st[K.S_EPOCH] = self._epoch
         st[K.S_ALIGN_END] = round(c["alignment"] * 1e9)
         st[K.S_P0 : K.S_P0 + 3] = lat, lon, h
-        st[K.S_MODE] = K.MODE_ALIGNING
+        st[K.S_MODE] = MODE_ALIGNING
         gaps = np.concatenate(self._gaps) if self._gaps else np.zeros(0)
         st[K.S_TNOM] = float(np.median(gaps)) * 1e-9 if len(gaps) else 0.005
         # coarse errors: level from the accelerometer noise and bias, heading from the

@@ -21,6 +21,7 @@ import math
 import numpy as np
 from numba import njit
 
+from bench.dut import FAULT_DOPPLER, MODE_DOPPLER, MODE_INERTIAL
 from bench.estimators._dr_kernel import dr_step, motion_direction
 from bench.estimators.ins_model import (
     DR,
@@ -51,7 +52,7 @@ S_PHASE = 41  # 1 fine alignment, 2 navigation
 S_TLAST, S_TSINCE = 42, 43  # last IMU time (ns), time since the last time update (s)
 S_FN = 44  # 3: sum of C_bn dvel since the last time update
 S_DV, S_DOK, S_DLOW, S_DT = 47, 48, 49, 50  # latest Doppler: speed, valid, low signal, arrival (ns)
-S_NEXT_OUT, S_EPOCH, S_ALIGN_END, S_NEXT_MU = 51, 52, 53, 54
+S_NEXT_OUT, S_ALIGN_END, S_NEXT_MU = 51, 53, 54  # 52 unused
 S_DR_ON, S_MODE = 55, 56
 S_P0 = 57  # 3: the surveyed position (lat, lon, h) held in the alignment
 S_UPDATES, S_EXCL, S_TNOM = 60, 61, 62  # updates made, Doppler excluded, nominal IMU interval (s)
@@ -63,7 +64,6 @@ P_TU, P_MU, P_MODE, P_RATT, P_RPOS, P_RVEL, P_ZUPT, P_RP0 = 6, 7, 8, 9, 10, 11, 
 P_OUT, P_LOWF, P_DTIMEOUT, P_SMOUNT, P_GB, P_AB, P_SHARED = 14, 15, 16, 17, 18, 19, 20
 PRM_SIZE = 24
 
-MODE_ALIGNING, MODE_INERTIAL, MODE_DOPPLER = 0, 1, 2
 
 
 @njit(cache=True)
@@ -250,10 +250,8 @@ def _output(st: np.ndarray, P: np.ndarray, t: float, sol: np.ndarray, qual: np.n
     r.roll = math.atan2(-C[2, 0], C[2, 2])
     r.mode = np.uint8(st[S_MODE])
     r.valid = np.uint8(1 if st[S_PHASE] == 2.0 else 0)
-    r.epoch = np.uint8(int(st[S_EPOCH]) % 256)
     q = qual[k]
     q.t_ns = np.int64(t)
-    q.epoch = r.epoch
     J = np.zeros((3, 3))
     euler_jacobian(C, J)
     Pa = P[PHI : PHI + 3, PHI : PHI + 3].copy()
@@ -262,8 +260,7 @@ def _output(st: np.ndarray, P: np.ndarray, t: float, sol: np.ndarray, qual: np.n
         q.sigma_pos[i] = math.sqrt(max(P[DR + i, DR + i], 0.0))
         q.sigma_vel[i] = math.sqrt(max(P[DV + i, DV + i], 0.0))
         q.sigma_att[i] = math.sqrt(max(Pe[i, i], 0.0))
-    q.excluded = np.uint8(2 if st[S_EXCL] > 0.0 else 0)
-    st[S_EPOCH] = (st[S_EPOCH] + 1.0) % 256.0
+    q.excluded = np.uint8(FAULT_DOPPLER if st[S_EXCL] > 0.0 else 0)
 
 
 @njit(cache=True)

@@ -15,6 +15,7 @@ import numpy as np
 
 from bench.clock import realtime_priority
 from bench.clock.pacing import TimingLog
+from bench.crashlog import write_traceback
 from bench.errors import BenchError, DutError
 from bench.run.result import reason_of, status_of
 from bench.run.session import RunSession
@@ -32,8 +33,13 @@ def note_ending(s: RunSession, exc: BaseException) -> KeyboardInterrupt | None:
     if not isinstance(exc, BenchError):
         s.rec.metadata("run_traceback", {"traceback": traceback.format_exc()})
     elif isinstance(exc, DutError) and exc.__cause__ is not None and not isinstance(exc.__cause__, BenchError):
+        # an in-process estimator raised: its traceback in the recording (and on /dut/log,
+        # written where it raised) and in the crash log beside the recording
         tb = "".join(traceback.format_exception(exc.__cause__))
         s.rec.metadata("dut_traceback", {"traceback": tb})
+        log = write_traceback(exc.__cause__, s.result.path.parent, context=f"DUT error (not the bench's): {exc}")
+        if log is not None:
+            s.result.reason += f" (traceback in {log})"
     return None
 
 

@@ -4,22 +4,43 @@ The bench's traffic of a window, already encoded and faulted as it would be on t
 wire, is decoded by the DUT-side decoders (:mod:`bench.dut.inputs`); the estimator is
 called once per scheduler step with what arrived up to that step; its epochs are encoded
 into NAV_SOLUTION / NAV_QUALITY frames as the ICD puts them on the bus, stamped with the
-step time, so the bench receives and records them exactly as from an external DUT.
+step time and numbered (:mod:`bench.dut.epochs`), so the bench receives and records them
+exactly as from an external DUT.
+
+The estimator failing ends the run as a :class:`~bench.errors.DutError` whose reason says
+how: it raised (its traceback written to the DUT's log as an external DUT's stderr would
+be), returned an epoch later than the step time, returned records of another layout, or
+values no NAV frame can carry. The frames of the steps before stay in :attr:`partial`;
+the earliest failure is the one reported.
 """
 
 from __future__ import annotations
 
+import traceback
+from collections.abc import Callable
+
 import numpy as np
 
-from bench.dut.estimator import Estimator, stack_outputs
+from bench.dut.epochs import EpochNumbering, first_late, late_message
+from bench.dut.estimator import Estimator, EstimatorOutput, first_refused, stack_outputs
 from bench.dut.inputs import InputDecoder
+from bench.dut.process import LogLine
 from bench.errors import CodecError, DutError
 from bench.frames import CanBatch
 from bench.run.traffic import Traffic
 from bench.topics import NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE
 from bench.wire.can import CanEncoder
 
-__all__ = ["InProcessDut"]
+__all__ = ["InProcessDut", "traceback_lines"]
+
+
+def traceback_lines(exc: BaseException) -> list[LogLine]:
+    """The traceback of ``exc`` as the stderr lines of a DUT's log."""
+    try:
+        text = "".join(traceback.format_exception(exc))
+    except Exception:  # an exception whose __str__ fails: still say what it was
+        text = f"{type(exc).__name__} (its traceback could not be formatted)"
+    return [LogLine(0, "stderr", line) for line in text.rstrip("\n").split("\n")]
 
 
 class InProcessDut:
@@ -31,12 +52,22 @@ class InProcessDut:
         The configured estimator.
     epoch_utc_ns:
         UTC of bench time zero (the DUT learns it from BENCH_EPOCH anyway).
+    on_lines:
+        Where the estimator's traceback goes when it raises, ``(lines, bench time)`` (the
+        run's ``/dut/log``).
     """
 
-    def __init__(self, estimator: Estimator, epoch_utc_ns: int | None = None):
+    def __init__(
+        self,
+        estimator: Estimator,
+        epoch_utc_ns: int | None = None,
+        on_lines: Callable[[list[LogLine], int], None] | None = None,
+    ):
         self.estimator = estimator
         self.decoder = InputDecoder(epoch_utc_ns)
         self.encoder = CanEncoder(wire_range=True)  # as a DUT puts it on the bus
+        self.numbering = EpochNumbering()
+        self.on_lines = on_lines
         self.epochs = 0
         #: The frames of the steps before the estimator failed in :meth:`exchange` (the
         #: engine records them before it ends the run).
@@ -55,11 +86,18 @@ class InProcessDut:
             try:
                 out = step(inputs)
             except Exception as exc:  # the estimator under test failed: that ends the run
-                self.partial = self._stacked(sols, s_rx, quals, q_rx)
+                self.partial = self._stacked(sols, s_rx, quals, q_rx)  # an earlier failure is raised here
+                self._log_traceback(exc, inputs.t_ns)
                 raise DutError(
                     f"the estimator {self.estimator.name!r} raised at bench time {inputs.t_ns / 1e9:.3f} "
                     f"s: {type(exc).__name__}: {exc}"
                 ) from exc
+            if not isinstance(out, EstimatorOutput):
+                self.partial = self._stacked(sols, s_rx, quals, q_rx)
+                raise DutError(
+                    f"the estimator {self.estimator.name!r} returned a {type(out).__name__} at bench time "
+                    f"{inputs.t_ns / 1e9:.3f} s, not an EstimatorOutput"
+                )
             if len(out.solutions):
                 sols.append(out.solutions)
                 s_rx.append((inputs.t_ns, len(out.solutions)))
@@ -72,11 +110,31 @@ class InProcessDut:
         self, sols: list[np.ndarray], s_rx: list[tuple[int, int]], quals: list[np.ndarray], q_rx: list[tuple[int, int]]
     ) -> CanBatch:
         try:
-            return self._frames(
-                stack_outputs(sols, s_rx, NAV_SOLUTION_DTYPE), stack_outputs(quals, q_rx, NAV_QUALITY_DTYPE)
-            )
-        except ValueError as exc:
-            raise DutError(f"the estimator {self.estimator.name!r}: {exc}") from exc
+            sol = stack_outputs(sols, s_rx, NAV_SOLUTION_DTYPE)
+            qual = stack_outputs(quals, q_rx, NAV_QUALITY_DTYPE)
+        except ValueError as exc:  # records of another layout: the steps before it were delivered
+            bad = min(t for t in (first_refused(sols, s_rx, NAV_SOLUTION_DTYPE),
+                                  first_refused(quals, q_rx, NAV_QUALITY_DTYPE)) if t is not None)
+            ks = [k for k, (t, _) in enumerate(s_rx) if t < bad]
+            kq = [k for k, (t, _) in enumerate(q_rx) if t < bad]
+            self.partial = self._stacked([sols[k] for k in ks], [s_rx[k] for k in ks], [quals[k] for k in kq],
+                                         [q_rx[k] for k in kq])
+            raise DutError(f"the estimator {self.estimator.name!r} at bench time {bad / 1e9:.3f} s: {exc}") from None
+        late = first_late(sol, qual)
+        if late is not None:  # an epoch from the future: the steps before it were delivered
+            step_ns = late[1]
+            keep = [r[r["rx_ns"] < step_ns] if r is not None else None for r in (sol, qual)]
+            self.numbering.number(*keep)
+            # (values of the epochs before that no frame can carry: that earlier failure is raised)
+            self.partial = self._frames(*(r if r is not None and len(r) else None for r in keep))
+            raise DutError(late_message(self.estimator.name, *late))
+        self.numbering.number(sol, qual)
+        return self._frames(sol, qual)
+
+    def _log_traceback(self, exc: BaseException, t_ns: int) -> None:
+        """The estimator's traceback on the DUT's log, as an external DUT's stderr."""
+        if self.on_lines is not None:
+            self.on_lines(traceback_lines(exc), t_ns)
 
     def _frames(self, sols: np.ndarray | None, quals: np.ndarray | None) -> CanBatch:
         parts = []

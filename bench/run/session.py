@@ -23,7 +23,7 @@ from bench.faults.wire import WIRE_EVENTS_TOPIC
 from bench.record.mcap_io import RecordingWriter
 from bench.record.wire_topics import CAN_TX, SERIAL_RX, SERIAL_TX, declare_wire_topics, write_can, write_serial
 from bench.run.external import ExternalDut
-from bench.run.inprocess import InProcessDut
+from bench.run.inprocess import InProcessDut, traceback_lines
 from bench.run.output import DutOutputRecorder
 from bench.run.provider import TrafficProvider
 from bench.run.result import RunResult
@@ -119,10 +119,12 @@ class RunSession:
             )
         out = self.out = DutOutputRecorder(rec)
         if self.start_error is not None:
+            if self.start_error.__cause__ is not None:  # the estimator's traceback, as a DUT's stderr
+                out.log(traceback_lines(self.start_error.__cause__), provider.start_ns)
             raise self.start_error
         if dut.kind == "in_process":
             assert self.estimator is not None
-            self.dut_in = InProcessDut(self.estimator, provider.epoch_ns)
+            self.dut_in = InProcessDut(self.estimator, provider.epoch_ns, on_lines=out.log)
         else:
             self.dut_ext = ExternalDut(
                 dut,
@@ -221,7 +223,7 @@ def open_session(
     start_error: DutError | None = None
     if dut.kind == "in_process":
         try:
-            estimator = create_estimator(str(dut.name), dut.config)
+            estimator = create_estimator(str(dut.name), dut.config, search=[dut.cwd])  # beside the case first
         except BenchError:
             raise
         except Exception as exc:  # the estimator under test failed to start: its run records that

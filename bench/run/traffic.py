@@ -29,12 +29,13 @@ from bench.sensors.odometer import Odometer
 from bench.wire import imu as imu_codec
 from bench.wire import nmea
 from bench.wire.can import CanEncoder, codec
+from bench.wire.icd import CMD_RESET_FILTER, CMD_SWITCH_TO_GEOGRAPHIC, CMD_SWITCH_TO_GRID
 
 __all__ = ["Traffic", "TrafficEncoder", "slice_window", "faulted", "BENCH_TIME_ID", "COMMAND_CODES"]
 
 BENCH_TIME_ID = codec("BENCH_TIME").frame_id
 #: BENCH_CMD codes by name (ICD 2.1).
-COMMAND_CODES = {"grid": 1, "geographic": 2, "reset": 3}
+COMMAND_CODES = {"grid": CMD_SWITCH_TO_GRID, "geographic": CMD_SWITCH_TO_GEOGRAPHIC, "reset": CMD_RESET_FILTER}
 #: CAN messages from sensor records: sensor -> (message, {signal: record field}).
 _CAN_SAMPLES = {
     "odometer": ("ODOMETER", {"pulse_count": "pulses", "speed": "speed", "reverse": "reverse", "valid": "valid"}),

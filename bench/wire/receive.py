@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass, field
+from functools import cache
 
 import numpy as np
 
@@ -24,7 +25,14 @@ from bench.wire.can import DECODE_KINDS, CanCodec, codec
 from bench.wire.sequence import SEQ_DUPLICATE, SEQ_KINDS, SEQ_REPEAT, SEQ_SKIP, SequenceChecker
 from bench.wire.tally import Tally
 
-__all__ = ["NavOutput", "NavReceiver", "BenchTrafficDecoder", "DUT_OUTPUT_MESSAGES", "BENCH_MESSAGES"]
+__all__ = [
+    "NavOutput",
+    "NavReceiver",
+    "BenchTrafficDecoder",
+    "empty_columns",
+    "DUT_OUTPUT_MESSAGES",
+    "BENCH_MESSAGES",
+]
 
 #: What the DUT sends (ICD 2.2).
 DUT_OUTPUT_MESSAGES = ("NAV_SOLUTION", "NAV_QUALITY", "DUT_READY")
@@ -234,10 +242,40 @@ class BenchTrafficDecoder(_CanReceiver):
         """Decode one batch of received frames (arrival times in ``batch.t_ns``)."""
         out: dict[str, dict[str, np.ndarray]] = {}
         for c, sub, values, labels, _rows in self._groups(batch):
-            keep = labels != SEQ_DUPLICATE
-            values = {k: v[keep] for k, v in values.items()}
-            values["rx_ns"] = sub.t_ns[keep]
+            values = _columns(values, sub.t_ns, labels != SEQ_DUPLICATE)
             if self.late_ns is not None and c.name == "BENCH_TIME":
                 self.tally.count("late", int(np.sum(values["rx_ns"] - values["time_ns"] > self.late_ns)))
             out[c.name] = values
         return out
+
+
+def _columns(values: dict[str, np.ndarray], rx_ns: np.ndarray, keep: np.ndarray) -> dict[str, np.ndarray]:
+    """The columns :meth:`BenchTrafficDecoder.feed` gives one message: the codec's decoded
+    values of the frames kept, plus ``rx_ns``."""
+    out = {k: v[keep] for k, v in values.items()}
+    out["rx_ns"] = rx_ns[keep]
+    return out
+
+
+@cache
+def _layout(name: str) -> tuple[tuple[str, np.dtype, tuple[int, ...]], ...]:
+    c = codec(name)
+    empty = CanBatch.empty(c.length)
+    values, _ = c.decode(empty)
+    cols = _columns(values, empty.t_ns, np.zeros(0, bool))
+    return tuple((k, v.dtype, v.shape[1:]) for k, v in cols.items())
+
+
+def empty_columns(name: str) -> dict[str, np.ndarray]:
+    """The columns :meth:`BenchTrafficDecoder.feed` gives bench message ``name`` when no
+    frame of it arrived: every field, zero-length, of the decoder's own dtype and shape
+    (fresh arrays on every call: a caller may write into them).
+
+    Raises
+    ------
+    KeyError
+        When ``name`` is not a bench-to-DUT message (:data:`BENCH_MESSAGES`).
+    """
+    if name not in BENCH_MESSAGES:
+        raise KeyError(f"{name!r} is not a message the bench sends; expected one of {', '.join(BENCH_MESSAGES)}")
+    return {k: np.zeros((0, *shape), dtype) for k, dtype, shape in _layout(name)}

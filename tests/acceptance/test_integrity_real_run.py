@@ -86,7 +86,9 @@ at_most = "100 m"
     ("corrupt", "named"),
     [
         ("none", None),
-        ("counter_stuck", "INTEGRITY-counter"),
+        # the bench numbers the epochs of an in-process DUT: a stuck counter the estimator
+        # writes is overwritten (wrong counters on the wire are judged: tests/fault_matrix)
+        ("counter_stuck", None),
         ("height", "INTEGRITY-range"),
         ("latitude", "INTEGRITY-bad-frames"),
         ("time_frozen", "INTEGRITY-repeated"),

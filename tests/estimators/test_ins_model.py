@@ -127,3 +127,38 @@ def test_euler_jacobian_matches_finite_differences():
         Cc = (np.eye(3) - np.array([[0, -phi[2], phi[1]], [phi[2], 0, -phi[0]], [-phi[1], phi[0], 0]])) @ C
         d = wrap_pi(np.array(dcm_to_euler(Cc)) - np.array(dcm_to_euler(C)))
         assert np.allclose(d / 1e-6, J[:, k], atol=1e-4)
+
+
+def test_scale_factor_columns_match_the_mechanization():
+    # the linear model integrated interval by interval along the true trajectory (the
+    # body rates vary by more than their mean, so one F for the stretch would not do)
+    from bench.estimators.ins_model import scale_factor_columns
+
+    n = 1000
+    dth, dv = _motion(n)
+    s0 = NavState(math.radians(34.0), 1.9, 380.0, np.array([8.0, 12.0, 0.5]), euler_to_dcm_q(0.6, 0.03, -0.02))
+    truth = Strapdown(s0)
+    Phi = np.eye(N_CORE + 6)
+    F = np.zeros((N_CORE + 6, N_CORE + 6))
+    for k in range(n):
+        before = truth.state
+        truth.step(dth[k], dv[k], T)
+        C = quat_to_dcm(truth.state.q_bn)
+        F[:, :] = 0.0
+        sub = np.zeros((N_CORE, N_CORE))
+        ins_error_matrix(sub, before.lat, before.h, before.vel_n, C @ dv[k] / T, C)
+        F[:N_CORE, :N_CORE] = sub
+        scale_factor_columns(F, N_CORE, C, dth[k] / T, dv[k] / T)
+        Phi = expm(F * T) @ Phi
+    for j in range(6):
+        size = 1e-3
+        sf = np.zeros(6)
+        sf[j] = size
+        sd = Strapdown(s0)
+        for k in range(n):
+            sd.step(dth[k] * (1 + sf[:3]), dv[k] * (1 + sf[3:]), T)
+        got = _errors(truth.state, sd.state)
+        dx = np.zeros(N_CORE + 6)
+        dx[N_CORE + j] = size
+        want = (Phi @ dx)[:9]
+        assert np.allclose(got, want, rtol=0.05, atol=0.01 * np.abs(want).max()), (j, got, want)

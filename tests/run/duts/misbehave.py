@@ -7,6 +7,7 @@ behaves (one NAV_SOLUTION per step) until bench time ``at_s`` and then does what
     crash_exit    print to stdout and stderr, then exit with code 3
     crash_abort   print, then abort (SIGABRT)
     crash_raise   raise RuntimeError (traceback on stderr, exit code 1)
+    late_epoch    return an epoch 10 ms later than the step time (the harness exits, code 1)
     hang          stop answering (sleep), still alive
     flood         send ``flood_frames`` NAV_SOLUTION frames per step from then on
     exit_at_once  exit with code 2 before opening any link
@@ -33,8 +34,8 @@ from bench.dut import harness
 from bench.dut.estimator import DutInputs, Estimator, EstimatorOutput, register_estimator
 from bench.topics import NAV_SOLUTION_DTYPE
 
-MODES = ("crash_exit", "crash_abort", "crash_raise", "hang", "flood", "exit_at_once", "never_ready", "ignore_term",
-         "slow")
+MODES = ("crash_exit", "crash_abort", "crash_raise", "late_epoch", "hang", "flood", "exit_at_once", "never_ready",
+         "ignore_term", "slow")
 
 
 def _say(text: str, stream=sys.stdout) -> None:
@@ -105,7 +106,7 @@ class Misbehave(Estimator):
             if self.mode == "flood":
                 n = self.flood_frames
         sol = np.zeros(n, NAV_SOLUTION_DTYPE)
-        sol["t_ns"] = t
+        sol["t_ns"] = t + 10_000_000 if t >= self.at_ns and self.mode == "late_epoch" else t
         sol["epoch"] = (self.epoch + np.arange(n)) % 256
         self.epoch += n
         return EstimatorOutput(sol)
