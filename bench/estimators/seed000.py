@@ -160,8 +160,6 @@ class Seed000(Estimator):
         if self._coarse:
             return self._coarse_step(inputs, imu)
         n = len(imu)
-        if n == 0:
-            return EstimatorOutput()
         d = inputs.doppler
         if len(d["rx_ns"]):
             d_t, d_v, d_ok, d_low = d["rx_ns"], d["speed"], d["valid"], d["low_signal"]

@@ -346,4 +346,10 @@ def run_step(
             _output(st, P, t, sol, qual, n_out)
             n_out += 1
             st[S_NEXT_OUT] = t + prm[P_OUT]
+    while j < d_t.shape[0]:  # samples after the step's last IMU frame (or a step without one)
+        st[S_DV] = d_v[j]
+        st[S_DOK] = 1.0 if d_ok[j] else 0.0
+        st[S_DLOW] = 1.0 if d_low[j] else 0.0
+        st[S_DT] = float(d_t[j])
+        j += 1
     return n_out

@@ -83,3 +83,19 @@ def test_output_epochs_are_on_the_output_grid_without_gaps():
     assert np.all(np.diff(sol["t_ns"]) == 20_000_000)
     assert sol["t_ns"][0] == 0 or sol["t_ns"][0] == 20_000_000
     assert np.array_equal(sol["t_ns"], qual["t_ns"])
+
+
+def test_doppler_samples_of_a_step_without_imu_frames_are_kept():
+    # the IMU frames and the radar's samples arrive in alternate steps: the radar is
+    # never lost (mode stays Doppler-aided) although no step has both
+    est = create_estimator("seed000", {"initial_position": POS, "alignment": "30 s"})
+    imu = _static_imu(4, 60.0)
+    modes = []
+    for k in range(0, len(imu), 2):
+        part = imu[k : k + 2]
+        t1 = int(part["t_ns"][-1])
+        modes.append(est.step(DutInputs(t1, part, np.zeros(0), {})).solutions)
+        est.step(DutInputs(t1 + 1, imu[:0], np.zeros(0), {"DOPPLER": _doppler(t1 - 20_000_000, t1 + 1, True)}))
+    sol = np.concatenate(modes)
+    t = sol["t_ns"] * 1e-9
+    assert np.all(sol["mode"][t > 31.0] == 2)
