@@ -46,10 +46,13 @@ PAPER = {
 
 
 def _run(case: Path, out: Path, runs: int) -> None:
-    cmd = [sys.executable, "-m", "bench.cli", "run", str(case), "-o", str(out), "--force", "--no-plots", "-q"]
+    cli = "import sys; from bench.cli import main; sys.exit(main())"
+    cmd = [sys.executable, "-c", cli, "run", str(case), "-o", str(out), "--force", "--no-plots", "-q"]
     for s in range(1, runs + 1):
         cmd += ["--seed", str(s)]
-    subprocess.run(cmd, check=False, cwd=ROOT)
+    done = subprocess.run(cmd, check=False, cwd=ROOT)
+    if done.returncode not in (0, 1):  # 1: some criterion FAILed, the recordings are there
+        raise SystemExit(f"bench run exited {done.returncode}")
 
 
 def _one(path: Path, conv_s: float) -> dict:
