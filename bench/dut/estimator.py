@@ -271,6 +271,24 @@ def _registered(name: str) -> Callable[[], Estimator]:
     return _FACTORIES[name]
 
 
+def stack_step_outputs(
+    sols: list[np.ndarray], s_rx: list[tuple[int, int]], quals: list[np.ndarray], q_rx: list[tuple[int, int]]
+) -> tuple[np.ndarray | None, np.ndarray | None, int | None, str]:
+    """The steps' NAV_SOLUTION and NAV_QUALITY records stacked (:func:`stack_outputs`).
+    When a step's records are of another layout: those of the steps before it, the bench
+    time of the first refused step and why; else ``(sol, qual, None, "")``."""
+    try:
+        return stack_outputs(sols, s_rx, NAV_SOLUTION_DTYPE), stack_outputs(quals, q_rx, NAV_QUALITY_DTYPE), None, ""
+    except ValueError as exc:
+        refused = (first_refused(sols, s_rx, NAV_SOLUTION_DTYPE), first_refused(quals, q_rx, NAV_QUALITY_DTYPE))
+        bad = min(t for t in refused if t is not None)
+        ks = [k for k, (t, _) in enumerate(s_rx) if t < bad]
+        kq = [k for k, (t, _) in enumerate(q_rx) if t < bad]
+        sol = stack_outputs([sols[k] for k in ks], [s_rx[k] for k in ks], NAV_SOLUTION_DTYPE)
+        qual = stack_outputs([quals[k] for k in kq], [q_rx[k] for k in kq], NAV_QUALITY_DTYPE)
+        return sol, qual, bad, str(exc)
+
+
 def first_refused(parts: list[np.ndarray], rx: list[tuple[int, int]], dtype: np.dtype) -> int | None:
     """The step time of the first part :func:`stack_outputs` refuses (None: none is)."""
     for part, (t, n) in zip(parts, rx, strict=True):

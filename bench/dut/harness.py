@@ -49,11 +49,10 @@ from pathlib import Path
 import numpy as np
 
 from bench.dut.epochs import EpochNumbering, first_late, late_message
-from bench.dut.estimator import CanView, DutInputs, EstimatorOutput, create_estimator, first_refused, stack_outputs
+from bench.dut.estimator import CanView, DutInputs, EstimatorOutput, create_estimator, stack_step_outputs
 from bench.dut.inputs import InputDecoder
 from bench.errors import CodecError, ConfigError, LinkError
 from bench.frames import CanBatch
-from bench.topics import NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE
 from bench.transport.can_link import CanConfig, open_can_link
 from bench.transport.serial_link import SerialConfig, open_serial_link
 from bench.transport.udp import RUN_TAG_ENV
@@ -246,17 +245,9 @@ class Harness:
                 quals.append(res.qualities)
                 q_rx.append((t, len(res.qualities)))
         self._imu, self._gnss = self._imu[imu_lo:], self._gnss[gnss_lo:]
-        try:
-            sol = stack_outputs(sols, s_rx, NAV_SOLUTION_DTYPE)
-            qual = stack_outputs(quals, q_rx, NAV_QUALITY_DTYPE)
-        except ValueError as exc:  # records of another layout: the steps before it are answered
-            bad = min(t for t in (first_refused(sols, s_rx, NAV_SOLUTION_DTYPE),
-                                  first_refused(quals, q_rx, NAV_QUALITY_DTYPE)) if t is not None)
-            ks = [k for k, (t, _) in enumerate(s_rx) if t < bad]
-            kq = [k for k, (t, _) in enumerate(q_rx) if t < bad]
-            sol = stack_outputs([sols[k] for k in ks], [s_rx[k] for k in ks], NAV_SOLUTION_DTYPE)
-            qual = stack_outputs([quals[k] for k in kq], [q_rx[k] for k in kq], NAV_QUALITY_DTYPE)
-            failure = EstimatorError(f"the estimator {est!r} at bench time {bad / 1e9:.3f} s: {exc}"), bad
+        sol, qual, bad, why = stack_step_outputs(sols, s_rx, quals, q_rx)
+        if bad is not None:  # records of another layout: the steps before it are answered
+            failure = EstimatorError(f"the estimator {est!r} at bench time {bad / 1e9:.3f} s: {why}"), bad
         late = first_late(sol, qual)
         if late is not None and (failure is None or late[1] < failure[1]):  # an epoch from the future
             failure = EstimatorError(late_message(est, *late)), late[1]

@@ -20,7 +20,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -30,6 +29,7 @@ from bench.dut import MODE_ALIGNING, MODE_DOPPLER, MODE_ODOMETER, SOLUTION_VALID
 from bench.dut.estimator import DutInputs, Estimator, EstimatorOutput
 from bench.errors import ConfigError
 from bench.estimators._dr_kernel import propagate
+from bench.estimators.settings import period_ns, surveyed_position
 from bench.nav.alignment import coarse_align
 from bench.nav.rotation import dcm_to_quat, quat_to_euler
 from bench.topics import NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE
@@ -39,12 +39,9 @@ __all__ = ["DecodeOnly", "DeadReckoning"]
 
 def _output_period(config: Mapping[str, Any]) -> int:
     rate = quantity(config.get("output_rate", 100.0), "frequency", "Hz", key="dut.config.output_rate")
-    period = 1e9 / rate
-    if rate <= 0 or abs(period - round(period)) > 1e-6:
-        raise ConfigError(
-            f"expected an output rate dividing a second into whole ns, found {rate:g} Hz", key="dut.config.output_rate"
-        )
-    return round(period)
+    if not rate > 0:
+        raise ConfigError(f"expected a positive output rate, found {rate:g} Hz", key="dut.config.output_rate")
+    return period_ns(1.0 / rate, "dut.config.output_rate")
 
 
 class DecodeOnly(Estimator):
@@ -100,13 +97,7 @@ class DeadReckoning(Estimator):
         self.alignment_ns = round(
             quantity(config.get("alignment", 60.0), "time", "s", key="dut.config.alignment") * 1e9
         )
-        pos = config.get("initial_position")
-        if not isinstance(pos, (list, tuple)) or len(pos) != 3:
-            raise ConfigError(
-                "expected [latitude deg, longitude deg, height m], the surveyed start point",
-                key="dut.config.initial_position",
-            )
-        self.position = (math.radians(float(pos[0])), math.radians(float(pos[1])), float(pos[2]))
+        self.position = surveyed_position(config)
 
     # -- speed aid ---------------------------------------------------------------------
     def _speed_samples(self, inputs: DutInputs) -> tuple[np.ndarray, np.ndarray]:

@@ -40,6 +40,7 @@ from bench.config.table import check_keys
 from bench.dut import MODE_ALIGNING, NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE, DutInputs, Estimator, EstimatorOutput
 from bench.errors import ConfigError
 from bench.estimators import seed000_kernel as K  # noqa: N812 - the kernel layout constants
+from bench.estimators.settings import period_ns, surveyed_position
 from bench.nav.alignment import coarse_align
 from bench.nav.rotation import dcm_to_quat
 from bench.units import quantity
@@ -76,13 +77,6 @@ NOISE_MODELS = ("shared", "independent")
 MODES = ("attitude_position", "velocity_position")
 _EMPTY_I = np.zeros(0, np.int64)
 _EMPTY_F = np.zeros(0)
-
-
-def _period_ns(value: float, key: str) -> int:
-    ns = value * 1e9
-    if value <= 0 or abs(ns - round(ns)) > 1e-3:
-        raise ConfigError(f"expected a positive period of whole nanoseconds, found {value:g} s", key=key)
-    return round(ns)
 
 
 class Seed000(Estimator):
@@ -123,26 +117,20 @@ class Seed000(Estimator):
                 f"expected one of {NOISE_MODELS}, found {noise_model!r}", key="dut.config.gyro_noise_model"
             )
         self.prm[K.P_SHARED] = 1.0 if noise_model == "shared" else 0.0
-        pos = config.get("initial_position")
-        if not isinstance(pos, (list, tuple)) or len(pos) != 3:
-            raise ConfigError(
-                "expected [latitude deg, longitude deg, height m], the surveyed start point",
-                key="dut.config.initial_position",
-            )
-        self.position = (math.radians(float(pos[0])), math.radians(float(pos[1])), float(pos[2]))
+        self.position = surveyed_position(config)
         c = self.cfg
         if c["coarse_alignment"] >= c["alignment"]:
             raise ConfigError("expected coarse_alignment shorter than alignment", key="dut.config.coarse_alignment")
         for k in ("doppler_rate", "doppler_scale_tau", "output_rate"):
             if c[k] <= 0:
                 raise ConfigError("expected a positive value", key=f"dut.config.{k}")
-        self._out_ns = _period_ns(1.0 / c["output_rate"], "dut.config.output_rate")
+        self._out_ns = period_ns(1.0 / c["output_rate"], "dut.config.output_rate")
         prm = self.prm
         prm[K.P_NG], prm[K.P_NA] = c["gyro_noise"], c["accel_noise"]
         prm[K.P_SD], prm[K.P_DRATE] = c["doppler_noise"], c["doppler_rate"]
         prm[K.P_SK], prm[K.P_TK] = c["doppler_scale_sigma"], c["doppler_scale_tau"]
         prm[K.P_TU] = c["time_update_period"]
-        prm[K.P_MU] = _period_ns(c["update_period"], "dut.config.update_period")
+        prm[K.P_MU] = period_ns(c["update_period"], "dut.config.update_period")
         prm[K.P_MODE] = self.mode
         prm[K.P_RATT], prm[K.P_RPOS], prm[K.P_RVEL] = c["attitude_noise"], c["position_noise"], c["velocity_noise"]
         prm[K.P_ZUPT], prm[K.P_RP0] = c["zupt_noise"], c["position_sigma"]

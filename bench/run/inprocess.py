@@ -22,13 +22,12 @@ from collections.abc import Callable
 import numpy as np
 
 from bench.dut.epochs import EpochNumbering, first_late, late_message
-from bench.dut.estimator import Estimator, EstimatorOutput, first_refused, stack_outputs
+from bench.dut.estimator import Estimator, EstimatorOutput, stack_step_outputs
 from bench.dut.inputs import InputDecoder
 from bench.dut.process import LogLine
 from bench.errors import CodecError, DutError
 from bench.frames import CanBatch
 from bench.run.traffic import Traffic
-from bench.topics import NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE
 from bench.wire.can import CanEncoder
 
 __all__ = ["InProcessDut", "traceback_lines"]
@@ -109,17 +108,14 @@ class InProcessDut:
     def _stacked(
         self, sols: list[np.ndarray], s_rx: list[tuple[int, int]], quals: list[np.ndarray], q_rx: list[tuple[int, int]]
     ) -> CanBatch:
-        try:
-            sol = stack_outputs(sols, s_rx, NAV_SOLUTION_DTYPE)
-            qual = stack_outputs(quals, q_rx, NAV_QUALITY_DTYPE)
-        except ValueError as exc:  # records of another layout: the steps before it were delivered
-            bad = min(t for t in (first_refused(sols, s_rx, NAV_SOLUTION_DTYPE),
-                                  first_refused(quals, q_rx, NAV_QUALITY_DTYPE)) if t is not None)
-            ks = [k for k, (t, _) in enumerate(s_rx) if t < bad]
-            kq = [k for k, (t, _) in enumerate(q_rx) if t < bad]
-            self.partial = self._stacked([sols[k] for k in ks], [s_rx[k] for k in ks], [quals[k] for k in kq],
-                                         [q_rx[k] for k in kq])
-            raise DutError(f"the estimator {self.estimator.name!r} at bench time {bad / 1e9:.3f} s: {exc}") from None
+        sol, qual, bad, why = stack_step_outputs(sols, s_rx, quals, q_rx)
+        if bad is not None:  # records of another layout: the steps before it were delivered
+            self.partial = self._checked(sol, qual)  # (an earlier failure among them is raised here)
+            raise DutError(f"the estimator {self.estimator.name!r} at bench time {bad / 1e9:.3f} s: {why}")
+        return self._checked(sol, qual)
+
+    def _checked(self, sol: np.ndarray | None, qual: np.ndarray | None) -> CanBatch:
+        """Frames of the stacked records, numbered; an epoch later than its step ends here."""
         late = first_late(sol, qual)
         if late is not None:  # an epoch from the future: the steps before it were delivered
             step_ns = late[1]

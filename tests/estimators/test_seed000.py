@@ -69,6 +69,10 @@ def test_configuration_errors_name_the_key():
     with pytest.raises(ConfigError) as e:
         create_estimator("seed000", {})
     assert e.value.key == "dut.config.initial_position"
+    for bad in (["34 N", 108.9, 380.0], [134.0, 108.9, 380.0], [34.2, float("nan"), 380.0]):
+        with pytest.raises(ConfigError) as e:
+            create_estimator("seed000", {"initial_position": bad})
+        assert e.value.key == "dut.config.initial_position"
     with pytest.raises(ConfigError) as e:
         create_estimator("seed000", {"initial_position": POS, "gyro_noise": "3 m"})
     assert e.value.key == "dut.config.gyro_noise"
