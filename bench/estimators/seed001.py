@@ -78,7 +78,13 @@ VECTOR_KEYS: dict[str, tuple[str, str, tuple[float, float, float]]] = {
     "bds_markov_sigma": ("length", "m", (0.57, 2.53, 2.22)),
     "odometer_noise": ("velocity", "m/s", (0.1, 0.05, 0.1)),
 }
-_SWITCHES = {"lever_arm_compensation": True, "time_offset_estimation": True, "odometer": True, "map_matching": False}
+_SWITCHES = {
+    "lever_arm_compensation": True,
+    "time_offset_estimation": True,
+    "odometer": True,
+    "map_matching": False,
+    "log_diagnostics": False,
+}
 _OTHER_KEYS = ("initial_position", "road_network")
 _EMPTY_I = np.zeros(0, np.int64)
 _EMPTY_F = np.zeros(0)
@@ -185,6 +191,14 @@ class Seed001(Estimator):
         return {"time_offset_s": dt, "time_offset_sigma_s": sdt, "odometer_scale": float(st[K.S_K]),
                 "fixes_used": int(st[K.S_NBDS]), "fixes_gated": int(st[K.S_NREJ]),
                 "fixes_without_position": int(st[K.S_NSKIP]), "last_nis": float(st[K.S_NIS])}
+
+    def close(self) -> None:
+        """With ``log_diagnostics``: one line on stderr (the DUT log through the harness)."""
+        if self.switch["log_diagnostics"]:
+            import json
+            import sys
+
+            print(f"seed001 diagnostics: {json.dumps(self.diagnostics())}", file=sys.stderr, flush=True)
 
     @property
     def covariance(self) -> np.ndarray:
