@@ -49,6 +49,9 @@ CONFIG_KEYS: dict[str, tuple[str, str, float]] = {
     "gyro_noise": ("angle_random_walk", "deg/sqrt(h)", 0.001),
     "accel_bias": ("acceleration", "ug", 100.0),
     "accel_noise": ("velocity_random_walk", "ug/sqrt(Hz)", 10.0),
+    "gyro_bias_instability": ("angular_rate", "deg/h", 0.003),
+    "accel_bias_instability": ("acceleration", "ug", 10.0),
+    "bias_instability_tau": ("time", "s", 500.0),
     "alignment": ("time", "s", 55.0),
     "coarse_alignment": ("time", "s", 10.0),
     "time_update_period": ("time", "s", 0.1),
@@ -151,6 +154,10 @@ class Seed001(Estimator):
 
         p = self.prm
         p[K.P_NG], p[K.P_NA], p[K.P_GB], p[K.P_AB] = c["gyro_noise"], c["accel_noise"], c["gyro_bias"], c["accel_bias"]
+        # bias instability as a random walk of the bias states: sigma^2 growth 2 sigma^2 / tau per s
+        tb = max(c["bias_instability_tau"], 1e-3)
+        p[K.P_QG] = c["gyro_bias_instability"] * math.sqrt(2.0 / tb)
+        p[K.P_QA] = c["accel_bias_instability"] * math.sqrt(2.0 / tb)
         p[K.P_TU], p[K.P_OUT], p[K.P_ZUPT], p[K.P_RP0] = c["time_update_period"], self._out_ns, c["zupt_noise"], \
             c["position_sigma"]
         p[K.P_LA : K.P_LA + 3] = vec["lever_arm"] if self.switch["lever_arm_compensation"] else 0.0

@@ -54,7 +54,8 @@ P_OL = 27  # 3: odometer lever arm
 P_KS, P_KQ = 30, 31  # scale-factor prior sigma, random walk 1/sqrt(s)
 P_ZT, P_ZA, P_ZW, P_ZS, P_ZN = 32, 33, 34, 35, 36  # still time s, accel std, rate, speed, ZUPT noise
 P_BDSAGE, P_ODOTO = 37, 38  # ns: BDS counts as aiding for, odometer sample valid for
-PRM_SIZE = 40
+P_QG, P_QA = 39, 40  # random-walk densities of the gyro and accelerometer biases (instability)
+PRM_SIZE = 44
 HIST_LEN = 400  # 2 s of 200 Hz frames
 FIX_COLS = 10
 
@@ -81,6 +82,8 @@ def _time_update(st: np.ndarray, P: np.ndarray, prm: np.ndarray, T: float, xm: n
     for i in range(3):
         Qc[PHI + i, PHI + i] = prm[P_NG] ** 2
         Qc[DV + i, DV + i] = prm[P_NA] ** 2
+        Qc[9 + i, 9 + i] = prm[P_QG] ** 2
+        Qc[12 + i, 12 + i] = prm[P_QA] ** 2
         F[MK + i, MK + i] = -1.0 / prm[P_MTAU]
         Qc[MK + i, MK + i] = 2.0 * prm[P_MS + i] ** 2 / prm[P_MTAU]
     Qc[DK, DK] = prm[P_KQ] ** 2
