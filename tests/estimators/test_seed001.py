@@ -118,3 +118,33 @@ def test_configuration_errors_name_the_key():
     with pytest.raises(ConfigError) as e:
         create_estimator("seed001", {"lever_arm": [0, 0, 0]})
     assert e.value.key == "dut.config.initial_position"
+
+
+def test_map_matching_hook_puts_the_matched_position_on_the_output(drive):
+    """The wiring only, with a stand-in matcher (bench.estimators.mapmatch is another
+    module): called at the 10 Hz valid epochs, its offset applied up to the next."""
+
+    class Match:
+        def __init__(self, lat, lon):
+            self.lat, self.lon = lat, lon
+
+    class Matcher:
+        def __init__(self):
+            self.calls: list[int] = []
+
+        def update(self, t_ns, lat, lon, heading, speed):
+            self.calls.append(t_ns)
+            return Match(lat + 1e-6, lon - 2e-6)
+
+    g = fixes(drive, 5)
+    plain, _ = run(create_estimator("seed001", BASE), drive, g)
+    est = create_estimator("seed001", BASE)
+    matcher = Matcher()
+    est._matcher = matcher
+    sol, _ = run(est, drive, g)
+    valid = sol["valid"] == 1
+    assert np.allclose(sol["lat"][valid] - plain["lat"][valid], 1e-6, atol=1e-12)
+    assert np.allclose(sol["lon"][valid] - plain["lon"][valid], -2e-6, atol=1e-12)
+    assert np.all(sol["lat"][~valid] == plain["lat"][~valid])
+    calls = np.array(matcher.calls)
+    assert len(calls) and np.all(calls % 100_000_000 == 0)
