@@ -208,6 +208,7 @@ _BUILTIN = {
     "decode_only": "bench.estimators.basic:DecodeOnly",
     "dead_reckoning": "bench.estimators.basic:DeadReckoning",
     "seed000": "bench.estimators.seed000:Seed000",
+    "seed001": "bench.estimators.seed001:Seed001",
 }
 
 

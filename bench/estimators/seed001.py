@@ -1,0 +1,335 @@
+"""``seed001``: the BDS / SINS loose-integration estimator of seed 001 (transport vehicle).
+
+A 20-state closed-loop error-state Kalman filter on the bench's SINS (the core 15 states,
+an odometer scale factor, the receiver's time offset and, optionally, three first-order
+Markov states of the receiver's correlated position error; the layout in
+:mod:`bench.estimators.seed001_meas`):
+
+- BDS position and horizontal velocity (seed eq. 14) from the NMEA epochs, compared with
+  the INS at the fix's measurement time (its UTC via BENCH_EPOCH, minus the estimated
+  time offset; the INS kept in a 2 s history), the antenna lever arm compensated in
+  position and velocity (eq. 1-6) and the time offset in the measurement matrix (eq.
+  7-10); R from the GST sigmas minus the modelled Markov part; chi-square gating (fixes
+  gated out: NAV_QUALITY fault detected and excluded, bit 2; no-fix epochs: excluded);
+- the odometer speed with the non-holonomic constraint (eq. 20, body velocity (0, (1-k)
+  v_odo, 0)) at ``odometer_rate``; a zero-velocity update instead when the odometer has
+  read zero for ``zupt_time`` and the IMU is still;
+- alignment at rest: analytic coarse alignment, then the fine alignment (zero velocity and
+  the surveyed position) until ``alignment``;
+- optionally the output position put on the road network by the HMM map matcher
+  (``map_matching = true``, :mod:`bench.estimators.mapmatch`).
+
+Configuration keys, defaults and the variants: docs/estimators.md, ``seed001``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.config.table import check_keys
+from bench.dut import MODE_ALIGNING, NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE, DutInputs, Estimator, EstimatorOutput
+from bench.errors import ConfigError
+from bench.estimators import seed001_kernel as K  # noqa: N812 - the kernel layout constants
+from bench.estimators.seed001_meas import DDT, DK, MK
+from bench.estimators.settings import period_ns, surveyed_position
+from bench.nav.alignment import coarse_align
+from bench.nav.rotation import dcm_to_quat
+from bench.units import quantity
+
+__all__ = ["Seed001", "CONFIG_KEYS", "VECTOR_KEYS"]
+
+#: key -> (dimension, unit of a bare number, default)
+CONFIG_KEYS: dict[str, tuple[str, str, float]] = {
+    "gyro_bias": ("angular_rate", "deg/h", 0.01),
+    "gyro_noise": ("angle_random_walk", "deg/sqrt(h)", 0.001),
+    "accel_bias": ("acceleration", "ug", 100.0),
+    "accel_noise": ("velocity_random_walk", "ug/sqrt(Hz)", 10.0),
+    "gyro_bias_instability": ("angular_rate", "deg/h", 0.003),
+    "accel_bias_instability": ("acceleration", "ug", 10.0),
+    "bias_instability_tau": ("time", "s", 500.0),
+    "alignment": ("time", "s", 55.0),
+    "coarse_alignment": ("time", "s", 10.0),
+    "time_update_period": ("time", "s", 0.1),
+    "output_rate": ("frequency", "Hz", 100.0),
+    "zupt_noise": ("velocity", "m/s", 0.001),
+    "position_sigma": ("length", "m", 0.1),
+    "time_offset": ("time", "s", 0.0),
+    "time_offset_sigma": ("time", "s", 0.1),
+    "bds_markov_tau": ("time", "s", 45.0),
+    "bds_white_floor": ("dimensionless", "1", 0.2),
+    "bds_velocity_sigma": ("velocity", "m/s", 0.1),
+    "bds_gate": ("dimensionless", "1", 0.9999),
+    "bds_aiding_timeout": ("time", "s", 2.0),
+    "odometer_rate": ("frequency", "Hz", 10.0),
+    "odometer_scale_sigma": ("dimensionless", "%", 0.5),
+    "odometer_timeout": ("time", "s", 0.1),
+    "zupt_time": ("time", "s", 1.0),
+    "zupt_speed": ("velocity", "m/s", 0.02),
+    "zupt_accel_std": ("acceleration", "m/s^2", 0.05),
+    "zupt_rate": ("angular_rate", "deg/s", 1.0),
+    "stop_zupt_noise": ("velocity", "m/s", 0.01),
+}
+#: key -> (dimension, unit of a bare number, default (3,)); body RFU for the lever arms
+VECTOR_KEYS: dict[str, tuple[str, str, tuple[float, float, float]]] = {
+    "lever_arm": ("length", "m", (0.0, 0.0, 0.0)),
+    "odometer_lever_arm": ("length", "m", (0.0, 0.0, 0.0)),
+    "bds_markov_sigma": ("length", "m", (0.57, 2.53, 2.22)),
+    "odometer_noise": ("velocity", "m/s", (0.1, 0.05, 0.1)),
+}
+_SWITCHES = {
+    "lever_arm_compensation": True,
+    "time_offset_estimation": True,
+    "odometer": True,
+    "map_matching": False,
+    "log_diagnostics": False,
+}
+_OTHER_KEYS = ("initial_position", "road_network")
+_EMPTY_I = np.zeros(0, np.int64)
+_EMPTY_F = np.zeros(0)
+
+
+def _vector(config: Mapping[str, Any], key: str) -> np.ndarray:
+    dim, unit, default = VECTOR_KEYS[key]
+    v = config.get(key, default)
+    if not isinstance(v, (list, tuple)) or len(v) != 3:
+        raise ConfigError(f"expected three values (right, forward, up / E, N, U), found {v!r}", key=f"dut.config.{key}")
+    return np.array([quantity(x, dim, unit, key=f"dut.config.{key}") for x in v], dtype=float)
+
+
+class Seed001(Estimator):
+    """BDS / SINS loose integration of seed 001 (module docstring)."""
+
+    name = "seed001"
+
+    def __init__(self) -> None:
+        self.cfg: dict[str, float] = {k: quantity(v, d, u) for k, (d, u, v) in CONFIG_KEYS.items()}
+        self.switch = dict(_SWITCHES)
+        self.position: tuple[float, float, float] | None = None
+        self.st = np.zeros(K.ST_SIZE)
+        self.P = np.zeros((K.N_STATES, K.N_STATES))
+        self.prm = np.zeros(K.PRM_SIZE)
+        self.xm = np.zeros(3)
+        self.hist = np.zeros((K.HIST_LEN, 14))
+        self._pending = np.zeros((0, K.FIX_COLS))
+        self._coarse = True
+        self._sum_th = np.zeros(3)
+        self._sum_dv = np.zeros(3)
+        self._gaps: list[np.ndarray] = []
+        self._last = 0
+        self._next_out = 0
+        self._out_ns = 10_000_000
+        self._matcher: Any = None
+        self._mm_offset = (0.0, 0.0)
+
+    # -- configuration -------------------------------------------------------------------
+    def configure(self, config: Mapping[str, Any]) -> None:
+        check_keys(config, [*CONFIG_KEYS, *VECTOR_KEYS, *_SWITCHES, *_OTHER_KEYS], file=None, key="dut.config")
+        for k, (dim, unit, default) in CONFIG_KEYS.items():
+            v = quantity(config.get(k, default), dim, unit, key=f"dut.config.{k}")
+            if v < 0 and k != "time_offset":
+                raise ConfigError(f"expected a non-negative value, found {config[k]!r}", key=f"dut.config.{k}")
+            self.cfg[k] = float(v)
+        for k in _SWITCHES:
+            v = config.get(k, _SWITCHES[k])
+            if not isinstance(v, bool):
+                raise ConfigError(f"expected true or false, found {v!r}", key=f"dut.config.{k}")
+            self.switch[k] = v
+        vec = {k: _vector(config, k) for k in VECTOR_KEYS}
+        self.position = surveyed_position(config)
+        c = self.cfg
+        if c["coarse_alignment"] >= c["alignment"]:
+            raise ConfigError("expected coarse_alignment shorter than alignment", key="dut.config.coarse_alignment")
+        for k in ("output_rate", "odometer_rate", "bds_markov_tau", "time_update_period", "odometer_timeout"):
+            if c[k] <= 0:
+                raise ConfigError("expected a positive value", key=f"dut.config.{k}")
+        if not 0.0 < c["bds_gate"] < 1.0:
+            raise ConfigError(f"expected a probability in (0, 1), found {c['bds_gate']!r}", key="dut.config.bds_gate")
+        self._out_ns = period_ns(1.0 / c["output_rate"], "dut.config.output_rate")
+        from scipy.stats import chi2
+
+        p = self.prm
+        p[K.P_NG], p[K.P_NA], p[K.P_GB], p[K.P_AB] = c["gyro_noise"], c["accel_noise"], c["gyro_bias"], c["accel_bias"]
+        # bias instability as a random walk of the bias states: sigma^2 growth 2 sigma^2 / tau per s
+        tb = max(c["bias_instability_tau"], 1e-3)
+        p[K.P_QG] = c["gyro_bias_instability"] * math.sqrt(2.0 / tb)
+        p[K.P_QA] = c["accel_bias_instability"] * math.sqrt(2.0 / tb)
+        p[K.P_TU], p[K.P_OUT], p[K.P_ZUPT], p[K.P_RP0] = c["time_update_period"], self._out_ns, c["zupt_noise"], \
+            c["position_sigma"]
+        p[K.P_LA : K.P_LA + 3] = vec["lever_arm"] if self.switch["lever_arm_compensation"] else 0.0
+        p[K.P_TOE] = 1.0 if self.switch["time_offset_estimation"] else 0.0
+        p[K.P_DTS], p[K.P_DTQ] = c["time_offset_sigma"], 0.0
+        p[K.P_MS : K.P_MS + 3] = vec["bds_markov_sigma"]
+        p[K.P_MTAU], p[K.P_RVEL], p[K.P_FLOOR] = c["bds_markov_tau"], c["bds_velocity_sigma"], c["bds_white_floor"]
+        p[K.P_GATE3], p[K.P_GATE5] = chi2.ppf(c["bds_gate"], 3), chi2.ppf(c["bds_gate"], 5)
+        p[K.P_ODO] = 1.0 if self.switch["odometer"] else 0.0
+        p[K.P_ODOPER] = period_ns(1.0 / c["odometer_rate"], "dut.config.odometer_rate")
+        p[K.P_ODOR : K.P_ODOR + 3] = vec["odometer_noise"]
+        p[K.P_OL : K.P_OL + 3] = vec["odometer_lever_arm"]
+        p[K.P_KS] = c["odometer_scale_sigma"]
+        p[K.P_KQ] = c["odometer_scale_sigma"] / math.sqrt(3600.0)  # grows by its prior sigma in an hour
+        p[K.P_ZT], p[K.P_ZA], p[K.P_ZW] = c["zupt_time"], c["zupt_accel_std"], c["zupt_rate"]
+        p[K.P_ZS], p[K.P_ZN] = c["zupt_speed"], c["stop_zupt_noise"]
+        p[K.P_BDSAGE], p[K.P_ODOTO] = c["bds_aiding_timeout"] * 1e9, c["odometer_timeout"] * 1e9
+        self.st[K.S_DT] = c["time_offset"]
+        if self.switch["map_matching"]:
+            self._matcher = _matcher(config.get("road_network"))
+
+    # -- what the MC scripts read ------------------------------------------------------------
+    @property
+    def time_offset(self) -> tuple[float, float]:
+        """(estimate, 1-sigma) of the receiver's time offset (sentence time minus true
+        measurement time), s."""
+        return float(self.st[K.S_DT]), math.sqrt(max(self.P[DDT, DDT], 0.0))
+
+    @property
+    def odometer_scale(self) -> tuple[float, float]:
+        """(estimate, 1-sigma) of the odometer scale-factor error compensated."""
+        return float(self.st[K.S_K]), math.sqrt(max(self.P[DK, DK], 0.0))
+
+    def diagnostics(self) -> dict[str, float]:
+        """Counters and estimates beyond NAV_QUALITY."""
+        st = self.st
+        dt, sdt = self.time_offset
+        return {"time_offset_s": dt, "time_offset_sigma_s": sdt, "odometer_scale": float(st[K.S_K]),
+                "fixes_used": int(st[K.S_NBDS]), "fixes_gated": int(st[K.S_NREJ]),
+                "fixes_without_position": int(st[K.S_NSKIP]), "last_nis": float(st[K.S_NIS])}
+
+    def close(self) -> None:
+        """With ``log_diagnostics``: one line on stderr (the DUT log through the harness)."""
+        if self.switch["log_diagnostics"]:
+            import json
+            import sys
+
+            print(f"seed001 diagnostics: {json.dumps(self.diagnostics())}", file=sys.stderr, flush=True)
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """The filter's covariance (20, 20), a copy."""
+        return self.P.copy()
+
+    # -- the step --------------------------------------------------------------------------
+    def step(self, inputs: DutInputs) -> EstimatorOutput:
+        if self.position is None:
+            raise ConfigError("the seed001 estimator needs dut.config.initial_position", key="dut.config")
+        self._take_fixes(inputs)
+        imu = inputs.imu
+        if self._coarse:
+            return self._coarse_step(inputs, imu)
+        o = inputs.odometer
+        if len(o["rx_ns"]):
+            o_t, o_v, o_ok = o["rx_ns"].astype(np.int64), o["speed"].astype(float), o["valid"].astype(np.int64)
+        else:
+            o_t, o_v, o_ok = _EMPTY_I, _EMPTY_F, _EMPTY_I
+        n = len(imu)
+        sol = np.zeros(n, NAV_SOLUTION_DTYPE)
+        qual = np.zeros(n, NAV_QUALITY_DTYPE)
+        k = K.run_step(self.st, self.P, self.prm, self.xm, self.hist, imu["dtheta"], imu["dvel"], imu["t_ns"],
+                       o_t, o_v, o_ok, self._pending, sol, qual)
+        self._pending = self._pending[int(self.st[K.S_CONSUMED]) :]
+        if k == 0:
+            return EstimatorOutput()
+        sol, qual = sol[:k], qual[:k]
+        if self._matcher is not None:
+            self._map_match(sol)
+        return EstimatorOutput(sol, qual)
+
+    def _take_fixes(self, inputs: DutInputs) -> None:
+        g = inputs.gnss
+        if not len(g) or inputs.epoch_utc_ns is None:
+            return  # without BENCH_EPOCH the sentence times are not bench times
+        rows = np.column_stack([g["t_ns"].astype(float), g["lat"], g["lon"], g["h"], g["vel_n"][:, 0],
+                                g["vel_n"][:, 1], g["sigma_lat"], g["sigma_lon"], g["sigma_alt"],
+                                g["quality"].astype(float)])
+        allrows = np.vstack([self._pending, rows])
+        self._pending = np.ascontiguousarray(allrows[np.argsort(allrows[:, 0], kind="stable")])
+
+    def _coarse_step(self, inputs: DutInputs, imu: np.ndarray) -> EstimatorOutput:
+        if len(imu):
+            if len(imu) > 1:
+                self._gaps.append(np.diff(imu["t_ns"]))
+            self._sum_th += imu["dtheta"].sum(axis=0)
+            self._sum_dv += imu["dvel"].sum(axis=0)
+            self._last = int(imu["t_ns"][-1])
+        out = self._aligning_epochs(inputs.t_ns)
+        if self._last >= self.cfg["coarse_alignment"] * 1e9 and self._last > 0:
+            self._start_fine(self._last)
+        return out
+
+    def _aligning_epochs(self, t_ns: int) -> EstimatorOutput:
+        if t_ns < self._next_out or self.position is None:
+            return EstimatorOutput()
+        first = -(-self._next_out // self._out_ns) * self._out_ns
+        times = np.arange(first, t_ns + 1, self._out_ns, dtype=np.int64)
+        if not len(times):
+            return EstimatorOutput()
+        self._next_out = int(times[-1]) + self._out_ns
+        sol = np.zeros(len(times), NAV_SOLUTION_DTYPE)
+        sol["t_ns"] = times
+        sol["lat"], sol["lon"], sol["h"] = self.position
+        sol["mode"] = MODE_ALIGNING
+        qual = np.zeros(len(times), NAV_QUALITY_DTYPE)
+        qual["t_ns"] = times
+        qual["sigma_pos"] = self.cfg["position_sigma"]
+        return EstimatorOutput(sol, qual)
+
+    def _start_fine(self, t_ns: int) -> None:
+        c = self.cfg
+        T = t_ns * 1e-9
+        lat, lon, h = self.position  # type: ignore[misc]
+        C = coarse_align(self._sum_dv / T, self._sum_th / T, lat)
+        st = self.st
+        st[K.S_SINS : K.S_SINS + 3] = lat, lon, h
+        st[K.S_SINS + 6 : K.S_SINS + 10] = dcm_to_quat(C)
+        st[K.S_PHASE], st[K.S_TLAST], st[K.S_NEXT_OUT] = 1.0, t_ns, self._next_out
+        st[K.S_ALIGN_END] = round(c["alignment"] * 1e9)
+        st[K.S_P0 : K.S_P0 + 3] = lat, lon, h
+        st[K.S_MODE] = MODE_ALIGNING
+        st[K.S_STILL] = -1.0
+        st[K.S_LAST_BDS] = st[K.S_LAST_ODO] = -1e18
+        gaps = np.concatenate(self._gaps) if self._gaps else np.zeros(0)
+        st[K.S_TNOM] = float(np.median(gaps)) * 1e-9 if len(gaps) else 0.005
+        lvl = max(3.0 * c["accel_bias"] / 9.8, math.radians(0.05))
+        hdg = max(10.0 * c["gyro_noise"] / math.sqrt(T) / (7.292115e-5 * math.cos(lat)), math.radians(1.0))
+        diag = np.zeros(K.N_STATES)
+        diag[0:3] = lvl**2, lvl**2, hdg**2
+        diag[3:6] = 0.01**2
+        diag[6:9] = c["position_sigma"] ** 2
+        diag[9:12] = c["gyro_bias"] ** 2
+        diag[12:15] = c["accel_bias"] ** 2
+        diag[DK] = c["odometer_scale_sigma"] ** 2
+        diag[DDT] = c["time_offset_sigma"] ** 2 if self.switch["time_offset_estimation"] else 0.0
+        diag[MK : MK + 3] = self.prm[K.P_MS : K.P_MS + 3] ** 2
+        self.P[:, :] = np.diag(diag)
+        self._coarse = False
+
+    # -- map matching ----------------------------------------------------------------------
+    def _map_match(self, sol: np.ndarray) -> None:
+        """Output positions on the road: the matcher at each 10 Hz epoch, its offset from the
+        filter applied to the epochs between."""
+        for i in range(len(sol)):
+            r = sol[i]
+            if r["valid"] and int(r["t_ns"]) % 100_000_000 == 0:
+                v = r["vel_n"]
+                m = self._matcher.update(int(r["t_ns"]), float(r["lat"]), float(r["lon"]), float(r["heading"]),
+                                         float(math.hypot(v[0], v[1])))
+                self._mm_offset = (0.0, 0.0) if m is None else (m.lat - float(r["lat"]), m.lon - float(r["lon"]))
+            if r["valid"]:
+                sol["lat"][i] += self._mm_offset[0]
+                sol["lon"][i] += self._mm_offset[1]
+
+
+def _matcher(path: Any) -> Any:
+    """The online HMM map matcher on the road network ``path`` (imported only when used)."""
+    key = "dut.config.road_network"
+    if not isinstance(path, str) or not path:
+        raise ConfigError("map_matching = true needs the road network: a GeoJSON file path", key=key)
+    if not Path(path).is_file():
+        raise ConfigError(f"no road network file {path!r}", key=key)
+    from bench.estimators.mapmatch import OnlineMatcher, RoadNetwork
+
+    return OnlineMatcher(RoadNetwork.from_geojson(path))
