@@ -4,8 +4,12 @@ Each fix epoch (``rate``: 1, 5 or 10 Hz, at whole multiples of the period) gives
 position and velocity of the antenna phase centre, at ``lever_arm`` from the IMU (body
 frame): ``r_ant = r_imu + C_bn l_b`` (added in ECEF) and
 ``v_ant = vel_n + C_bn (omega_eb_b x l_b)`` (seed 001 eq. 1-4). The fix leaves the
-receiver ``latency`` after its measurement time (``tx_ns = t_ns + latency``); its time
-fields carry the measurement time.
+receiver ``latency`` after its measurement time (``tx_ns = t_ns + latency``). Its time
+fields carry ``stamp_ns``: the measurement time plus the receiver's time-tag error
+(``time_tag_error`` + ``time_tag_drift`` x t: the sentence's time minus the true
+measurement time, what seed 001's time synchronisation, eq. 7-10, compensates), recorded
+in the run's truth beside the true ``t_ns``. The tag error is separate from the
+transmission latency; it is rounded to whole microseconds (the sentence rounds to 10 ms).
 
 Errors are sized by datasheet 95 % figures (seed 001: horizontal 10 m, vertical 10 m,
 velocity 0.2 m/s; Asia-Pacific 5 m / 5 m). A horizontal 95 % radius R95 of a circular
@@ -55,6 +59,12 @@ BDS_PARAMS: dict[str, Param] = {
     "rate": Param("frequency", "Hz", 1.0, "fix rate: 1, 5 or 10 Hz"),
     "lever_arm": Param("length", "m", 0.0, "antenna phase centre from the IMU, body frame (right, forward, up)", n=3),
     "latency": Param("time", "s", 0.0, "time from measurement to output", lo=0.0, hi=1.0),
+    "time_tag_error": Param(
+        "time", "s", 0.0, "sentence time minus true measurement time (constant part)", lo=-1.0, hi=1.0
+    ),
+    "time_tag_drift": Param(
+        "number", "s/s", 0.0, "drift of the time-tag error per second of bench time", lo=-1e-3, hi=1e-3
+    ),
     "horizontal_95": Param("length", "m", 10.0, "horizontal position error, 95 % radius (2-D)", lo=0.0),
     "vertical_95": Param("length", "m", 10.0, "vertical position error, 95 % bound", lo=0.0),
     "velocity_95": Param("velocity", "m/s", 0.2, "horizontal velocity error, 95 % radius (2-D)", lo=0.0),
@@ -77,6 +87,7 @@ BDS_DTYPE = np.dtype(
     [
         ("t_ns", "<i8"),
         ("tx_ns", "<i8"),
+        ("stamp_ns", "<i8"),
         ("lat", "<f8"),
         ("lon", "<f8"),
         ("h", "<f8"),
@@ -93,8 +104,9 @@ BDS_DTYPE = np.dtype(
     ]
 )
 _UNITS = {
-    "t_ns": "ns, measurement time (the NMEA time fields)",
+    "t_ns": "ns, true measurement time",
     "tx_ns": "ns, when the sentences leave the receiver (t_ns + latency)",
+    "stamp_ns": "ns, the time the NMEA time fields carry (t_ns + time-tag error)",
     "lat": "rad, antenna (NaN without fix)",
     "lon": "rad, antenna (NaN without fix)",
     "h": "m, ellipsoidal height of the antenna (NaN without fix)",
@@ -156,6 +168,11 @@ class BdsReceiver(SensorModel):
         self.faults = list(faults)
         self._last_outage_ns = -(1 << 62)
 
+    def time_tag_ns(self, t_ns: np.ndarray) -> np.ndarray:
+        """Time-tag error (ns, whole microseconds) at the measurement times ``t_ns``."""
+        tag = self.p["time_tag_error"] + self.p["time_tag_drift"] * (np.asarray(t_ns) * 1e-9)
+        return np.rint(tag * 1e6).astype(np.int64) * 1000
+
     def topics(self) -> list[TopicSpec]:
         return [
             TopicSpec(
@@ -197,6 +214,7 @@ class BdsReceiver(SensorModel):
         rec = np.empty(n, dtype=BDS_DTYPE)
         rec["t_ns"] = t
         rec["tx_ns"] = t + self.latency_ns
+        rec["stamp_ns"] = t + self.time_tag_ns(t)
         rec["lat"] = lat + err[:, 1] / (R_M + h)
         rec["lon"] = lon + err[:, 0] / ((R_N + h) * np.cos(lat))
         rec["h"] = h + err[:, 2]
