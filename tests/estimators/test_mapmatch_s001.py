@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from bench.estimators.mapmatch import OnlineMatcher, RoadNetwork, match
+from bench.roadgen import network_doc
 from bench.scenario.loader import load_scenario
-from bench.scoring.roadgen import network_doc
 
 NET = Path(__file__).parents[2] / "test_cases" / "scenarios" / "S001_roads.geojson"
 

@@ -1,4 +1,4 @@
-"""Generate a scenario's road network from its truth track: ``python -m bench.scoring.roadgen S001 OUT``.
+"""Generate a scenario's road network from its truth track: ``python -m bench.roadgen S001 OUT``.
 
 The route is the truth track's horizontal path sampled every 2 s (shapely-simplified with a
 5 cm tolerance), feature ``route``; distractors are parallel streets offset 20 m to the left
@@ -77,7 +77,7 @@ def network_doc(scenario: str) -> dict:
 def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
     if len(args) != 2:
-        print("usage: python -m bench.scoring.roadgen SCENARIO OUT.geojson", file=sys.stderr)
+        print("usage: python -m bench.roadgen SCENARIO OUT.geojson", file=sys.stderr)
         return 2
     Path(args[1]).write_text(json.dumps(network_doc(args[0]), indent=1) + "\n", encoding="utf-8")
     return 0
