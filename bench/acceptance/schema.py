@@ -49,6 +49,18 @@ TOP_KEYS = (
 )
 SENSORS = ("imu", "doppler", "odometer", "bds", "driver")
 COMMANDS = {"grid": 1, "geographic": 2, "reset": 3}
+def expand_case_dir(value: Any, base: Path | None) -> Any:
+    """``{case_dir}`` in the string values of a ``[dut.config]`` table (nested tables and lists
+    too) replaced by the case file's folder (the working directory for a case from text)."""
+    if isinstance(value, str):
+        return value.replace("{case_dir}", str(base if base is not None else Path.cwd()))
+    if isinstance(value, Mapping):
+        return {k: expand_case_dir(v, base) for k, v in value.items()}
+    if isinstance(value, list):
+        return [expand_case_dir(v, base) for v in value]
+    return value
+
+
 COMMAND_PLACEHOLDERS = ("can_interface", "can_channel", "can_port", "imu_port", "gnss_port", "config", "python")
 #: link name -> key -> (checker kind, description)
 LINK_KEYS: dict[str, dict[str, str]] = {
@@ -323,7 +335,7 @@ def _dut(t: Table, base: Path | None, check_files: bool) -> DutSpec:
                 raise t.error("config", f"file not found: {raw_config}")
             regular_file(found[0], what="DUT configuration file")
     elif isinstance(raw_config, Mapping):
-        config = dict(raw_config)
+        config = expand_case_dir(raw_config, base)
     else:
         raise t.error("config", f"expected a table or a file name, found {raw_config!r} ({type_name(raw_config)})")
     rate = t.quantity("output_rate", "frequency", "Hz", 100.0, positive=True, bound="rate")
@@ -366,7 +378,7 @@ def _dut(t: Table, base: Path | None, check_files: bool) -> DutSpec:
             vsyn = vt.raw("synthetic", None)
             vdesc = vt.str("description", "")
             vt.finish()
-            entry: dict[str, Any] = {"config": dict(vconfig), "description": vdesc}
+            entry: dict[str, Any] = {"config": expand_case_dir(vconfig, base), "description": vdesc}
             if vsyn is not None:
                 if kind != "synthetic":
                     raise vt.error("synthetic", f"only a synthetic DUT takes [synthetic] overrides, not {kind!r}")
