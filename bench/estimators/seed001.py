@@ -124,6 +124,7 @@ class Seed001(Estimator):
         self._next_out = 0
         self._out_ns = 10_000_000
         self._matcher: Any = None
+        self._mm_sent: dict[int, tuple[float, float]] = {}
         self._mm_offset = (0.0, 0.0)
 
     # -- configuration -------------------------------------------------------------------
@@ -315,9 +316,17 @@ class Seed001(Estimator):
             r = sol[i]
             if r["valid"] and int(r["t_ns"]) % 100_000_000 == 0:
                 v = r["vel_n"]
-                m = self._matcher.update(int(r["t_ns"]), float(r["lat"]), float(r["lon"]), float(r["heading"]),
+                t = int(r["t_ns"])
+                self._mm_sent[t] = (float(r["lat"]), float(r["lon"]))
+                m = self._matcher.update(t, float(r["lat"]), float(r["lon"]), float(r["heading"]),
                                          float(math.hypot(v[0], v[1])))
-                self._mm_offset = (0.0, 0.0) if m is None else (m.lat - float(r["lat"]), m.lon - float(r["lon"]))
+                # the matcher decides `lag` epochs back: the offset is the matched position
+                # minus the filter's position at that epoch, carried to the epochs after
+                if m is not None and m.t_ns in self._mm_sent:
+                    lat0, lon0 = self._mm_sent[m.t_ns]
+                    self._mm_offset = (m.lat - lat0, m.lon - lon0) if m.matched else (0.0, 0.0)
+                    for k in [k for k in self._mm_sent if k <= m.t_ns]:
+                        del self._mm_sent[k]
             if r["valid"]:
                 sol["lat"][i] += self._mm_offset[0]
                 sol["lon"][i] += self._mm_offset[1]

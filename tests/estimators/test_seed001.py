@@ -121,20 +121,27 @@ def test_configuration_errors_name_the_key():
 
 
 def test_map_matching_hook_puts_the_matched_position_on_the_output(drive):
-    """The wiring only, with a stand-in matcher (bench.estimators.mapmatch is another
-    module): called at the 10 Hz valid epochs, its offset applied up to the next."""
+    """The wiring, with a stand-in matcher that decides two epochs late as
+    bench.estimators.mapmatch.OnlineMatcher does: called at the 10 Hz valid epochs, the
+    offset of the matched position from the filter's position *at the decided epoch*
+    applied from the decision on."""
 
     class Match:
-        def __init__(self, lat, lon):
-            self.lat, self.lon = lat, lon
+        def __init__(self, t_ns, lat, lon):
+            self.t_ns, self.lat, self.lon, self.matched = t_ns, lat, lon, True
 
     class Matcher:
         def __init__(self):
             self.calls: list[int] = []
+            self.seen: list[tuple[int, float, float]] = []
 
         def update(self, t_ns, lat, lon, heading, speed):
             self.calls.append(t_ns)
-            return Match(lat + 1e-6, lon - 2e-6)
+            self.seen.append((t_ns, lat, lon))
+            if len(self.seen) < 3:
+                return None
+            t0, la, lo = self.seen[-3]
+            return Match(t0, la + 1e-6, lo - 2e-6)
 
     g = fixes(drive, 5)
     plain, _ = run(create_estimator("seed001", BASE), drive, g)
@@ -143,8 +150,10 @@ def test_map_matching_hook_puts_the_matched_position_on_the_output(drive):
     est._matcher = matcher
     sol, _ = run(est, drive, g)
     valid = sol["valid"] == 1
-    assert np.allclose(sol["lat"][valid] - plain["lat"][valid], 1e-6, atol=1e-12)
-    assert np.allclose(sol["lon"][valid] - plain["lon"][valid], -2e-6, atol=1e-12)
-    assert np.all(sol["lat"][~valid] == plain["lat"][~valid])
+    on = valid & (sol["t_ns"] >= matcher.calls[2])  # from the first decision
+    assert on.sum() > 100
+    assert np.allclose(sol["lat"][on] - plain["lat"][on], 1e-6, atol=1e-12)
+    assert np.allclose(sol["lon"][on] - plain["lon"][on], -2e-6, atol=1e-12)
+    assert np.all(sol["lat"][~on] == plain["lat"][~on])
     calls = np.array(matcher.calls)
     assert len(calls) and np.all(calls % 100_000_000 == 0)
