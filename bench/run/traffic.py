@@ -188,8 +188,8 @@ class TrafficEncoder:
         if rec is not None and len(rec):
             fixes = np.zeros(len(rec), nmea.GNSS_FIX_DTYPE)
             fixes["t_ns"] = rec["t_ns"]
-            # the time fields carry the receiver's stamp (true time + its time-tag error)
-            fixes["utc_ns"] = self.epoch_ns + rec["stamp_ns"]
+            stamp = rec["stamp_ns"] if "stamp_ns" in (rec.dtype.names or ()) else rec["t_ns"]
+            fixes["utc_ns"] = self.epoch_ns + stamp  # what the receiver stamps (time-tag error included)
             for f in ("lat", "lon", "h", "vel_n", "sigma_lat", "sigma_lon", "sigma_alt", "hdop"):
                 fixes[f] = rec[f]
             fixes["sats"] = rec["num_sats"]

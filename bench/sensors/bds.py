@@ -4,19 +4,18 @@ Each fix epoch (``rate``: 1, 5 or 10 Hz, at whole multiples of the period) gives
 position and velocity of the antenna phase centre, at ``lever_arm`` from the IMU (body
 frame): ``r_ant = r_imu + C_bn l_b`` (added in ECEF) and
 ``v_ant = vel_n + C_bn (omega_eb_b x l_b)`` (seed 001 eq. 1-4). The fix leaves the
-receiver ``latency`` after its measurement time (``tx_ns = t_ns + latency``). Its time
-fields carry ``stamp_ns``: the measurement time plus the receiver's time-tag error
-(``time_tag_error`` + ``time_tag_drift`` x t: the sentence's time minus the true
-measurement time, what seed 001's time synchronisation, eq. 7-10, compensates), recorded
-in the run's truth beside the true ``t_ns``. The tag error is separate from the
-transmission latency; it is rounded to whole microseconds (the sentence rounds to 10 ms).
+receiver ``latency`` after its measurement time (``tx_ns = t_ns + latency``); its time
+fields carry ``stamp_ns = t_ns + time_tag_error + time_tag_drift * t_ns`` rounded to the
+sentence's 10 ms (the time-tag error: the receiver stamps its fix wrongly; 0 by default).
 
 Errors are sized by datasheet 95 % figures (seed 001: horizontal 10 m, vertical 10 m,
 velocity 0.2 m/s; Asia-Pacific 5 m / 5 m). A horizontal 95 % radius R95 of a circular
 Gaussian is ``sqrt(-2 ln 0.05) sigma = 2.448 sigma`` per axis; a vertical 95 % bound is
 ``1.96 sigma``. Each axis (E, N, U) error is white noise plus a first-order Gauss-Markov
 process sharing the variance (``markov_fraction``) with correlation time ``markov_tau``;
-velocity errors likewise. The error level follows the sky: 1 in ``open`` segments,
+velocity errors likewise. Alternatively a set gives the sigmas per axis (``white_sigma``,
+``markov_sigma``, ``velocity_white_sigma``, ``velocity_markov_sigma``; E, N, U) and the
+95 % figures are then not used (a set giving both is refused). The error level follows the sky: 1 in ``open`` segments,
 ``urban_factor`` in ``urban`` ones, times the factor of a multipath fault; the reported
 1-sigma (GST), the HDOP (``hdop`` times the level) and the number of satellites
 (``satellites`` over the level, at least 4) follow it. ``blocked`` segments and ``outage``
@@ -47,7 +46,7 @@ from bench.sensors.params import Param, Resolved
 from bench.sensors.processes import GaussMarkov, WhiteNoise, period_ns, sample_times
 from bench.topics import TopicSpec
 
-__all__ = ["BDS_PARAMS", "BDS_DTYPE", "BdsReceiver", "R95_2D", "R95_1D", "sigmas"]
+__all__ = ["BDS_PARAMS", "BDS_DTYPE", "BdsReceiver", "R95_2D", "R95_1D", "sigmas", "split_sigmas"]
 
 #: Horizontal 95 % radius of a circular 2-D Gaussian over its per-axis sigma.
 R95_2D = math.sqrt(-2.0 * math.log(0.05))
@@ -59,12 +58,6 @@ BDS_PARAMS: dict[str, Param] = {
     "rate": Param("frequency", "Hz", 1.0, "fix rate: 1, 5 or 10 Hz"),
     "lever_arm": Param("length", "m", 0.0, "antenna phase centre from the IMU, body frame (right, forward, up)", n=3),
     "latency": Param("time", "s", 0.0, "time from measurement to output", lo=0.0, hi=1.0),
-    "time_tag_error": Param(
-        "time", "s", 0.0, "sentence time minus true measurement time (constant part)", lo=-1.0, hi=1.0
-    ),
-    "time_tag_drift": Param(
-        "number", "s/s", 0.0, "drift of the time-tag error per second of bench time", lo=-1e-3, hi=1e-3
-    ),
     "horizontal_95": Param("length", "m", 10.0, "horizontal position error, 95 % radius (2-D)", lo=0.0),
     "vertical_95": Param("length", "m", 10.0, "vertical position error, 95 % bound", lo=0.0),
     "velocity_95": Param("velocity", "m/s", 0.2, "horizontal velocity error, 95 % radius (2-D)", lo=0.0),
@@ -81,7 +74,32 @@ BDS_PARAMS: dict[str, Param] = {
     "urban_factor": Param("number", "", 2.0, "error level in urban segments (1 in open sky)", lo=1.0),
     "outage_style": Param("text", "", "no_fix", "what an outage sends", choices=("no_fix", "silent")),
     "reacquisition": Param("time", "s", 0.0, "time without fix after an outage ends", lo=0.0),
+    "white_sigma": Param("length", "m", -1.0, "per-axis (E, N, U) white position error 1-sigma (-1: not given)", n=3),
+    "markov_sigma": Param(
+        "length", "m", -1.0, "per-axis (E, N, U) Gauss-Markov position error 1-sigma (-1: not given)", n=3
+    ),
+    "velocity_white_sigma": Param(
+        "velocity", "m/s", -1.0, "per-axis (E, N, U) white velocity error 1-sigma (-1: not given)", n=3
+    ),
+    "velocity_markov_sigma": Param(
+        "velocity", "m/s", -1.0, "per-axis (E, N, U) Gauss-Markov velocity error 1-sigma (-1: not given)", n=3
+    ),
+    "time_tag_error": Param(
+        "time", "s", 0.0, "NMEA time fields minus the true measurement time (constant part)", lo=-1.0, hi=1.0
+    ),
+    "time_tag_drift": Param("number", "", 0.0, "rate of change of the time-tag error (s/s)", lo=-1e-3, hi=1e-3),
 }
+#: Per-axis sizing keys (they replace the 95 % figures when given).
+PER_AXIS_KEYS = ("white_sigma", "markov_sigma", "velocity_white_sigma", "velocity_markov_sigma")
+#: 95 %-figure sizing keys (refused beside the per-axis keys unless left at their defaults).
+SERVICE_KEYS = (
+    "horizontal_95",
+    "vertical_95",
+    "velocity_95",
+    "vertical_velocity_95",
+    "markov_fraction",
+    "velocity_markov_fraction",
+)
 
 BDS_DTYPE = np.dtype(
     [
@@ -106,7 +124,7 @@ BDS_DTYPE = np.dtype(
 _UNITS = {
     "t_ns": "ns, true measurement time",
     "tx_ns": "ns, when the sentences leave the receiver (t_ns + latency)",
-    "stamp_ns": "ns, the time the NMEA time fields carry (t_ns + time-tag error)",
+    "stamp_ns": "ns, bench time the NMEA time fields carry (t_ns + time-tag error, to 10 ms)",
     "lat": "rad, antenna (NaN without fix)",
     "lon": "rad, antenna (NaN without fix)",
     "h": "m, ellipsoidal height of the antenna (NaN without fix)",
@@ -123,11 +141,60 @@ _UNITS = {
 }
 
 
-def sigmas(params: Resolved | dict) -> tuple[np.ndarray, np.ndarray]:
-    """Per-axis 1-sigma (E, N, U) of the position and velocity errors from the 95 % figures."""
+def _given(params: Resolved | dict, key: str) -> bool:
+    return bool(np.all(np.asarray(params[key], dtype=float) >= 0.0))
+
+
+def split_sigmas(params: Resolved | dict, name: str = "bds") -> dict[str, np.ndarray]:
+    """Per-axis (E, N, U) white and Gauss-Markov 1-sigmas of position and velocity.
+
+    Keys ``pos_white``, ``pos_markov``, ``vel_white``, ``vel_markov``. From the per-axis
+    keys (:data:`PER_AXIS_KEYS`) when any is given (one left out counts 0; a set giving
+    them beside a 95 %-figure key changed from its default is refused), else from the
+    95 % figures and ``markov_fraction`` / ``velocity_markov_fraction``.
+    """
+    given = {k: np.asarray(params[k], dtype=float) for k in PER_AXIS_KEYS}
+    if any(np.any(v >= 0.0) for v in given.values()):
+        from bench.sensors.params import defaults
+
+        base = defaults({k: BDS_PARAMS[k] for k in SERVICE_KEYS})
+        for k in SERVICE_KEYS:
+            if not np.allclose(params[k], base[k]):
+                raise ConfigError(
+                    f"{k} (95 %-figure sizing) given beside per-axis sigmas ({', '.join(PER_AXIS_KEYS)}): use one way",
+                    key=f"{name}.{k}",
+                )
+        for k, v in given.items():
+            if np.any(v < 0.0) and np.any(v >= 0.0):
+                raise ConfigError(f"expected three sigmas >= 0, found {v.tolist()}", key=f"{name}.{k}")
+        for a, b in (("white_sigma", "markov_sigma"), ("velocity_white_sigma", "velocity_markov_sigma")):
+            if not (_given(params, a) or _given(params, b)):
+                raise ConfigError(f"per-axis sizing needs {a} or {b}", key=f"{name}.{a}")
+        z = np.zeros(3)
+        return {
+            key: (np.maximum(given[k], 0.0) if _given(params, k) else z)
+            for key, k in zip(("pos_white", "pos_markov", "vel_white", "vel_markov"), PER_AXIS_KEYS, strict=True)
+        }
+    pos, vel = _service_sigmas(params)
+    f, fv = params["markov_fraction"], params["velocity_markov_fraction"]
+    return {
+        "pos_white": pos * math.sqrt(1.0 - f),
+        "pos_markov": pos * math.sqrt(f),
+        "vel_white": vel * math.sqrt(1.0 - fv),
+        "vel_markov": vel * math.sqrt(fv),
+    }
+
+
+def _service_sigmas(params: Resolved | dict) -> tuple[np.ndarray, np.ndarray]:
     pos = np.array([params["horizontal_95"] / R95_2D] * 2 + [params["vertical_95"] / R95_1D])
     vel = np.array([params["velocity_95"] / R95_2D] * 2 + [params["vertical_velocity_95"] / R95_1D])
     return pos, vel
+
+
+def sigmas(params: Resolved | dict) -> tuple[np.ndarray, np.ndarray]:
+    """Per-axis total 1-sigma (E, N, U) of the position and velocity errors (open sky)."""
+    s = split_sigmas(params)
+    return np.hypot(s["pos_white"], s["pos_markov"]), np.hypot(s["vel_white"], s["vel_markov"])
 
 
 class BdsReceiver(SensorModel):
@@ -154,24 +221,25 @@ class BdsReceiver(SensorModel):
         self.latency_ns = round(params["latency"] * 1e9)
         self.lever = np.asarray(params["lever_arm"], dtype=float)
         dt = self.period * 1e-9
-        self.sigma_pos, self.sigma_vel = sigmas(params)
-        f, fv = params["markov_fraction"], params["velocity_markov_fraction"]
-        self._pos_w = WhiteNoise(self.sigma_pos * math.sqrt(1.0 - f), stream(seed, name, "pos", "white"))
-        self._pos_m = GaussMarkov(
-            self.sigma_pos * math.sqrt(f), params["markov_tau"], dt, stream(seed, name, "pos", "markov")
-        )
-        self._vel_w = WhiteNoise(self.sigma_vel * math.sqrt(1.0 - fv), stream(seed, name, "vel", "white"))
+        sp = split_sigmas(params, name)
+        self.sigma_pos = np.hypot(sp["pos_white"], sp["pos_markov"])
+        self.sigma_vel = np.hypot(sp["vel_white"], sp["vel_markov"])
+        self._pos_w = WhiteNoise(sp["pos_white"], stream(seed, name, "pos", "white"))
+        self._pos_m = GaussMarkov(sp["pos_markov"], params["markov_tau"], dt, stream(seed, name, "pos", "markov"))
+        self._vel_w = WhiteNoise(sp["vel_white"], stream(seed, name, "vel", "white"))
         self._vel_m = GaussMarkov(
-            self.sigma_vel * math.sqrt(fv), params["velocity_markov_tau"], dt, stream(seed, name, "vel", "markov")
+            sp["vel_markov"], params["velocity_markov_tau"], dt, stream(seed, name, "vel", "markov")
         )
+        self.tag_ns = float(params["time_tag_error"]) * 1e9
+        self.tag_drift = float(params["time_tag_drift"])
         self.style = OUTAGE_STYLES[params["outage_style"]]
         self.faults = list(faults)
         self._last_outage_ns = -(1 << 62)
 
-    def time_tag_ns(self, t_ns: np.ndarray) -> np.ndarray:
-        """Time-tag error (ns, whole microseconds) at the measurement times ``t_ns``."""
-        tag = self.p["time_tag_error"] + self.p["time_tag_drift"] * (np.asarray(t_ns) * 1e-9)
-        return np.rint(tag * 1e6).astype(np.int64) * 1000
+    def stamps(self, t_ns: np.ndarray) -> np.ndarray:
+        """Bench time the NMEA time fields carry for true times ``t_ns``, to the 10 ms of the sentence."""
+        tag = self.tag_ns + self.tag_drift * np.asarray(t_ns, dtype=float)
+        return np.rint((t_ns + tag) / 1e7).astype(np.int64) * 10_000_000
 
     def topics(self) -> list[TopicSpec]:
         return [
@@ -214,7 +282,7 @@ class BdsReceiver(SensorModel):
         rec = np.empty(n, dtype=BDS_DTYPE)
         rec["t_ns"] = t
         rec["tx_ns"] = t + self.latency_ns
-        rec["stamp_ns"] = t + self.time_tag_ns(t)
+        rec["stamp_ns"] = self.stamps(t)
         rec["lat"] = lat + err[:, 1] / (R_M + h)
         rec["lon"] = lon + err[:, 0] / ((R_N + h) * np.cos(lat))
         rec["h"] = h + err[:, 2]
