@@ -41,6 +41,7 @@ from bench.record.mcap_io import RecordingReader  # noqa: E402
 from bench.scoring.align import nav_errors  # noqa: E402
 from bench.scoring.consistency import chi2_bounds, nees_series  # noqa: E402
 from bench.scoring.data import load_run  # noqa: E402
+from bench.units import quantity  # noqa: E402
 
 SEED_DRIVING = (0.619, 2.759, 2.437, 3.73)
 DIAG = re.compile(r"seed001 diagnostics: (\{.*\})")
@@ -112,7 +113,7 @@ def main() -> int:
     doc = tomllib.loads(args.case.read_text())
     conv = float(str(doc["scoring"]["convergence"]).split()[0])
     variants = list(doc["dut"].get("variants", {})) or [""]
-    tag = float(str(doc["sensors"]["bds"].get("time_tag_error", "0 s")).split()[0]) * 1e3
+    tag = quantity(doc["sensors"]["bds"].get("time_tag_error", "0 s"), "time", "s") * 1e3
     tmp = None
     src = args.src
     diags: list[dict] = []
