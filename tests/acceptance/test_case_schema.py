@@ -178,7 +178,8 @@ def test_sensor_tables_merge_the_case_over_the_scenario():
 
     case = load_case(paths.test_cases_dir() / "S001_bds_sins.toml")
     tables = sensor_tables(case, load_scenario(paths.test_cases_dir() / "scenarios" / "S001_bds_urban.toml").doc)
-    assert tables["bds"]["model"] == "seed001" and tables["bds"]["latency"] == "80 ms"
+    assert tables["bds"]["model"] == "seed001_driving" and tables["bds"]["latency"] == "80 ms"
+    assert tables["bds"]["time_tag_error"] == "80 ms"
     assert tables["imu"] == {"grade": "navigation", "rate": "200 Hz"}
     assert tables["odometer"] == {"model": "typical_wheeled"}
     s002 = load_case(paths.test_cases_dir() / "S002_sins_odometer_faults.toml")
