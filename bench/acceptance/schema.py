@@ -27,7 +27,7 @@ from bench.acceptance.criteria_schema import criteria as parse_criteria
 from bench.acceptance.criteria_schema import scoring_settings
 from bench.acceptance.integrity_criteria import with_integrity
 from bench.acceptance.run_schema import clock_spec, run_spec
-from bench.config.files import read_toml, regular_file
+from bench.config.files import expand_case_dir, read_toml, regular_file
 from bench.config.table import Table, check_keys, type_name
 from bench.errors import ConfigError
 from bench.faults.schedule import FaultSchedule, parse_schedule
@@ -49,18 +49,6 @@ TOP_KEYS = (
 )
 SENSORS = ("imu", "doppler", "odometer", "bds", "driver")
 COMMANDS = {"grid": 1, "geographic": 2, "reset": 3}
-def expand_case_dir(value: Any, base: Path | None) -> Any:
-    """``{case_dir}`` in the string values of a ``[dut.config]`` table (nested tables and lists
-    too) replaced by the case file's folder (the working directory for a case from text)."""
-    if isinstance(value, str):
-        return value.replace("{case_dir}", str(base if base is not None else Path.cwd()))
-    if isinstance(value, Mapping):
-        return {k: expand_case_dir(v, base) for k, v in value.items()}
-    if isinstance(value, list):
-        return [expand_case_dir(v, base) for v in value]
-    return value
-
-
 COMMAND_PLACEHOLDERS = ("can_interface", "can_channel", "can_port", "imu_port", "gnss_port", "config", "python")
 #: link name -> key -> (checker kind, description)
 LINK_KEYS: dict[str, dict[str, str]] = {

@@ -20,13 +20,17 @@ import errno
 import os
 import stat
 import tomllib
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from bench.config.bounds import bound
 from bench.errors import ConfigError
 
-__all__ = ["TEXT_LIMIT", "LOG_LIMIT", "regular_file", "read_bytes", "read_text", "read_toml", "file_size_text"]
+__all__ = [
+    "TEXT_LIMIT", "LOG_LIMIT", "regular_file", "read_bytes", "read_text", "read_toml", "file_size_text",
+    "expand_case_dir",
+]
 
 #: Largest text input (TOML, CSV), bytes.
 TEXT_LIMIT = int(bound("text_file").high or 0)
@@ -146,3 +150,15 @@ def read_toml(path: str | Path, *, what: str = "TOML file") -> dict[str, Any]:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"not valid TOML: {exc}", file=str(path)) from None
+
+
+def expand_case_dir(value: Any, base: Path | None) -> Any:
+    """``{case_dir}`` in the string values of a ``[dut.config]`` table (nested tables and lists
+    too) replaced by the case file's folder (the working directory for a case from text)."""
+    if isinstance(value, str):
+        return value.replace("{case_dir}", str(base if base is not None else Path.cwd()))
+    if isinstance(value, Mapping):
+        return {k: expand_case_dir(v, base) for k, v in value.items()}
+    if isinstance(value, list):
+        return [expand_case_dir(v, base) for v in value]
+    return value
