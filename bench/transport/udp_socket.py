@@ -62,7 +62,9 @@ class MulticastSocket:
         self.out = out
         #: True when the kernel drops this link's own frames before they reach ``sock``
         self.own_filtered = skip_own and _drop_from_port(sock, out.getsockname()[1])
-        #: CLOCK_REALTIME ns at which the kernel received the last datagram read (None: unknown)
+        #: CLOCK_REALTIME ns at which the kernel received the last datagram read (None: unknown).
+        #: Linux turns arrival stamping on from a work queue a moment after the first socket
+        #: asks; a datagram that arrives before then is stamped when it is read.
         self.arrival_ns: int | None = None
         try:
             sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)

@@ -8,6 +8,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 import uuid
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -159,6 +160,13 @@ def test_the_matrix_helpers_can_see_a_process_left_running(tmp_path):
     mark = uuid.uuid4().hex
     child = subprocess.Popen(["sleep", "30"], env={**os.environ, MARK: mark})
     try:
+        # Popen returns once exec has begun, but the kernel fills the new image's
+        # environment (what /proc/PID/environ shows) a moment later: wait for the image to
+        # be complete (a hang guard, not a timing assertion), then look
+        environ = Path(f"/proc/{child.pid}/environ")
+        deadline = time.monotonic() + 60.0
+        while mark.encode() not in environ.read_bytes() and time.monotonic() < deadline:
+            time.sleep(0.01)
         assert _marked(mark) == [child.pid]
     finally:
         child.kill()
