@@ -63,37 +63,79 @@ ENTRY_POINT_GROUP = "bench.estimators"
 
 
 class CanView(Mapping[str, dict[str, np.ndarray]]):
-    """Per CAN message the decoded columns of one step, sliced from a window on demand."""
+    """Per CAN message the decoded columns of one step, sliced from a window on demand.
 
-    __slots__ = ("_cache", "_columns", "_hi", "_lo")
+    ``CanView(columns, lo, hi)``: message ``n``'s frames ``[lo[n], hi[n])`` of ``columns``;
+    :meth:`at_step` makes the view of step ``k`` from the window's cut lists without
+    building a dict per step (the bench's hot path: one view per 10 ms step)."""
+
+    __slots__ = ("_cache", "_columns", "_cuts", "_k")
 
     def __init__(self, columns: Mapping[str, Mapping[str, np.ndarray]], lo: Mapping[str, int], hi: Mapping[str, int]):
         self._columns = columns
-        self._lo = lo
-        self._hi = hi
+        self._cuts: Mapping[str, Sequence[int]] = {n: (lo[n], hi[n]) for n in lo}
+        self._k = 0
         self._cache: dict[str, dict[str, np.ndarray]] = {}
 
+    @classmethod
+    def at_step(
+        cls, columns: Mapping[str, Mapping[str, np.ndarray]], cuts: Mapping[str, Sequence[int]], k: int
+    ) -> CanView:
+        """The view of step ``k`` of a window: message ``n``'s frames
+        ``[cuts[n][k], cuts[n][k + 1])`` of ``columns`` (``cuts`` shared by the steps)."""
+        view = cls.__new__(cls)
+        view._columns = columns
+        view._cuts = cuts
+        view._k = k
+        view._cache = {}
+        return view
+
     def __getitem__(self, name: str) -> dict[str, np.ndarray]:
-        if name not in self._cache:
+        got = self._cache.get(name)
+        if got is None:
             cols = self._columns[name]
-            a, b = self._lo[name], self._hi[name]
-            self._cache[name] = {k: v[a:b] for k, v in cols.items()}
-        return self._cache[name]
+            c, k = self._cuts[name], self._k
+            a, b = c[k], c[k + 1]
+            got = self._cache[name] = {key: v[a:b] for key, v in cols.items()}
+        return got
+
+    def columns(self, name: str, keys: Sequence[str]) -> list[np.ndarray] | None:
+        """The columns ``keys`` of ``name`` in this step (zero-length if none arrived in this
+        step but some in the window; None for a message not in the window): ``self[name][key]``
+        for each key, without building the message's dict (a step's hot path)."""
+        cols = self._columns.get(name)
+        if cols is None:
+            return None
+        got = self._cache.get(name)
+        if got is not None:
+            return [got[key] for key in keys]
+        c, k = self._cuts[name], self._k
+        a, b = c[k], c[k + 1]
+        return [cols[key][a:b] for key in keys]
+
+    def get(self, name: str, default: Any = None) -> Any:  # type: ignore[override]
+        """The columns of ``name`` (zero-length if none arrived in this step but some in the
+        window), ``default`` for a message not in the window."""
+        return self[name] if name in self._columns else default
 
     def __iter__(self) -> Iterator[str]:
-        return (k for k in self._columns if self._hi[k] > self._lo[k])
+        k = self._k
+        return (n for n in self._columns if self._cuts[n][k + 1] > self._cuts[n][k])
 
     def __len__(self) -> int:
         return sum(1 for _ in self)
 
     def count(self, name: str) -> int:
         """Frames of message ``name`` in this step."""
-        return int(self._hi[name] - self._lo[name]) if name in self._columns else 0
+        if name not in self._columns:
+            return 0
+        c, k = self._cuts[name], self._k
+        return int(c[k + 1] - c[k])
 
     def total(self) -> int:
         """Frames of every message in this step."""
-        hi = self._hi
-        return sum(hi[k] - a for k, a in self._lo.items())
+        k = self._k
+        return sum(c[k + 1] - c[k] for c in self._cuts.values())
 
 
 @dataclass
@@ -176,6 +218,10 @@ class EstimatorOutput:
     qualities: np.ndarray = field(default_factory=lambda: np.zeros(0, NAV_QUALITY_DTYPE))
 
     def __post_init__(self) -> None:
+        sol, qual = self.solutions, self.qualities
+        if type(sol) is np.ndarray and type(qual) is np.ndarray and sol.ndim == 1 and qual.ndim == 1 \
+                and sol.dtype.names is not None and qual.dtype.names is not None:
+            return  # the usual case, checked at once (one EstimatorOutput per step)
         for what, value, kind in (("solutions", self.solutions, "NAV_SOLUTION"),
                                   ("qualities", self.qualities, "NAV_QUALITY")):
             if not isinstance(value, np.ndarray) or value.dtype.names is None or value.ndim != 1:
@@ -193,6 +239,13 @@ class Estimator(ABC):
     def configure(self, config: Mapping[str, Any]) -> None:  # noqa: B027 - optional hook
         """Receive the DUT configuration of the test case (``[dut] config``: lever arms,
         pulse equivalent, initial position... whatever the estimator documents)."""
+
+    def warm_up(self) -> None:  # noqa: B027 - optional hook
+        """Prepare what the first steps would otherwise prepare (compile numba kernels, load
+        tables), once, after :meth:`configure` and before the first step: the bench calls it
+        before the run starts and the harness before it answers its first BENCH_TIME, so a
+        first step does not stall the run (through the harness, a kernel compiled inside a
+        step leaves the bench without DUT_READY for as long as the compilation takes)."""
 
     @abstractmethod
     def step(self, inputs: DutInputs) -> EstimatorOutput:

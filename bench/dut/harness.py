@@ -23,7 +23,9 @@ It also stops by itself when the bench hangs up its serial lines (a pty slave re
 once the bench's master end is closed): a bench killed with SIGKILL, which cannot stop
 its DUT, does not leave this process behind.
 
-The harness fills what the bench fills in process: ``rx_ns`` and the epoch counters
+Before it opens its links it calls the estimator's ``warm_up`` (numba kernels compiled or
+loaded from the cache): a kernel compiled inside a step left the bench without DUT_READY
+for as long as the compilation took. The harness fills what the bench fills in process: ``rx_ns`` and the epoch counters
 (:mod:`bench.dut.epochs`). An estimator that raises (its traceback on stderr), returns
 an epoch later than the step time or something that is not an
 :class:`~bench.dut.estimator.EstimatorOutput` ends the harness with exit code 1 and a last
@@ -84,6 +86,7 @@ class Harness:
 
     def __init__(self, estimator_name: str, config: dict, *, can: CanConfig, imu_port: str, gnss_port: str):
         self.estimator = create_estimator(estimator_name, config)
+        self.estimator.warm_up()  # compiled before the first BENCH_TIME is answered, not inside a step
         self.numbering = EpochNumbering()
         self.can = open_can_link(can, run_tag=os.environ.get(RUN_TAG_ENV, ""))  # the bench's run: its frames only
         self.imu = open_serial_link(SerialConfig(port=imu_port, baudrate=460_800))
@@ -209,20 +212,19 @@ class Harness:
         q_rx: list[tuple[int, int]] = []
         failure: tuple[EstimatorError, int] | None = None
         est = self.estimator.name
+        cut_l = {n: c.tolist() for n, c in cuts.items()}
         for k, t in enumerate(times.tolist()):
             if t <= self.handled_ns:
                 # a BENCH_TIME that does not advance (the start-up rounds repeat the first
                 # one, each a new transmission): nothing new to process; answered below
                 continue
             self.handled_ns = t
-            lo = {n: int(c[k]) for n, c in cuts.items()}
-            hi = {n: int(c[k + 1]) for n, c in cuts.items()}
             imu = self._imu[imu_lo : ci[k]]
             gnss = self._gnss[gnss_lo : cg[k]]
             imu["rx_ns"] = t
             gnss["rx_ns"] = t
             imu_lo, gnss_lo = int(ci[k]), int(cg[k])
-            inputs = DutInputs(t, imu, gnss, CanView(can, lo, hi), self.decoder.epoch_utc_ns)
+            inputs = DutInputs(t, imu, gnss, CanView.at_step(can, cut_l, k), self.decoder.epoch_utc_ns)
             try:
                 res = self.estimator.step(inputs)
             except Exception as exc:  # the estimator failed: the steps before are answered, then the end

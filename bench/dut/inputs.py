@@ -96,17 +96,10 @@ class InputDecoder:
             _stamp(cols, cc[name], step_times)
         ci_l, cg_l = ci.tolist(), cg.tolist()
         cc_l = {k: v.tolist() for k, v in cc.items()}
-        names = list(cc_l)
+        imu, gnss, can, epoch = decoded.imu, decoded.gnss, decoded.can, self.epoch_utc_ns
+        at_step = CanView.at_step
         for k, t in enumerate(step_times.tolist()):
-            lo = {n: cc_l[n][k] for n in names}
-            hi = {n: cc_l[n][k + 1] for n in names}
-            yield DutInputs(
-                t,
-                decoded.imu[ci_l[k] : ci_l[k + 1]],
-                decoded.gnss[cg_l[k] : cg_l[k + 1]],
-                CanView(decoded.can, lo, hi),
-                self.epoch_utc_ns,
-            )
+            yield DutInputs(t, imu[ci_l[k] : ci_l[k + 1]], gnss[cg_l[k] : cg_l[k + 1]], at_step(can, cc_l, k), epoch)
 
 
 def _stamp(records, cuts: np.ndarray, step_times: np.ndarray) -> None:

@@ -12,10 +12,16 @@ how: it raised (its traceback written to the DUT's log as an external DUT's stde
 be), returned an epoch later than the step time, returned records of another layout, or
 values no NAV frame can carry. The frames of the steps before stay in :attr:`partial`;
 the earliest failure is the one reported.
+
+What the estimator writes on standard output or error when it is closed at the end of
+the run (a summary, diagnostics) goes to the DUT's log as an external DUT's lines do.
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
+import time
 import traceback
 from collections.abc import Callable
 
@@ -68,6 +74,7 @@ class InProcessDut:
         self.numbering = EpochNumbering()
         self.on_lines = on_lines
         self.epochs = 0
+        self.last_t_ns = 0
         #: The frames of the steps before the estimator failed in :meth:`exchange` (the
         #: engine records them before it ends the run).
         self.partial: CanBatch | None = None
@@ -82,6 +89,7 @@ class InProcessDut:
         q_rx: list[tuple[int, int]] = []
         step = self.estimator.step
         for inputs in self.decoder.step_inputs(decoded, step_times, start_ns):
+            self.last_t_ns = inputs.t_ns
             try:
                 out = step(inputs)
             except Exception as exc:  # the estimator under test failed: that ends the run
@@ -181,5 +189,15 @@ class InProcessDut:
         return lo
 
     def close(self) -> None:
-        """End of the run."""
-        self.estimator.close()
+        """End of the run: the estimator's ``close``, its output lines on the DUT's log."""
+        out, err = io.StringIO(), io.StringIO()
+        try:
+            with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+                self.estimator.close()
+        finally:
+            if self.on_lines is not None:
+                now = time.monotonic_ns()
+                lines = [LogLine(now, stream, text) for stream, buf in (("stdout", out), ("stderr", err))
+                         for text in buf.getvalue().splitlines()]
+                if lines:
+                    self.on_lines(lines, self.last_t_ns)

@@ -224,6 +224,7 @@ def open_session(
     if dut.kind == "in_process":
         try:
             estimator = create_estimator(str(dut.name), dut.config, search=[dut.cwd])  # beside the case first
+            estimator.warm_up()  # kernels compiled before the run's clock starts, not in its first steps
         except BenchError:
             raise
         except Exception as exc:  # the estimator under test failed to start: its run records that

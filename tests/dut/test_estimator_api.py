@@ -85,6 +85,24 @@ def test_a_message_absent_from_a_whole_window_still_has_every_field():
     assert set(DutInputs(0, inputs.imu, inputs.gnss, quiet).doppler) == set(inputs.doppler)
 
 
+def test_canview_columns_are_the_step_slices_of_the_message():
+    """CanView.columns: per key what the message's dict of the step holds; None for a message
+    not in the window; zero-length for one in the window but not in this step."""
+    enc = CanEncoder()
+    cols = BenchTrafficDecoder().feed(CanBatch.concat([enc.encode("DOPPLER", [0], **_ONE["DOPPLER"]),
+                                                       enc.encode("DOPPLER", [5], **_ONE["DOPPLER"])]))
+    cuts = {"DOPPLER": [0, 1, 1, 2]}
+    for k, n in enumerate((1, 0, 1)):
+        keys = ("rx_ns", "speed", "valid")
+        got = CanView.at_step(cols, cuts, k).columns("DOPPLER", keys)
+        view = CanView.at_step(cols, cuts, k)
+        want = [view["DOPPLER"][key] for key in keys]
+        assert [len(c) for c in got] == [n] * 3
+        assert all(a.dtype == b.dtype and np.array_equal(a, b) for a, b in zip(got, want, strict=True))
+        assert view.columns("DOPPLER", keys)[1] is view["DOPPLER"]["speed"]  # after the dict: its arrays
+        assert view.columns("ODOMETER", keys) is None
+
+
 class _ReadsEverything(Estimator):
     """Reads every CAN message's fields every step, whether it came or not."""
 
