@@ -30,7 +30,6 @@ See docs/estimators.md for the configuration keys, the tuning and the error budg
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -40,9 +39,8 @@ from bench.config.table import check_keys
 from bench.dut import MODE_ALIGNING, NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE, DutInputs, Estimator, EstimatorOutput
 from bench.errors import ConfigError
 from bench.estimators import seed000_kernel as K  # noqa: N812 - the kernel layout constants
+from bench.estimators.rest_alignment import RestAlignment, core_covariance
 from bench.estimators.settings import period_ns, surveyed_position
-from bench.nav.alignment import coarse_align
-from bench.nav.rotation import dcm_to_quat
 from bench.units import quantity
 
 __all__ = ["Seed000", "CONFIG_KEYS"]
@@ -91,12 +89,7 @@ class Seed000(Estimator):
         self.st = np.zeros(K.ST_SIZE)
         self.P = np.zeros((K.N_STATES, K.N_STATES))
         self.prm = np.zeros(K.PRM_SIZE)
-        self._coarse = True
-        self._sum_th = np.zeros(3)
-        self._sum_dv = np.zeros(3)
-        self._gaps: list[np.ndarray] = []
-        self._last = 0
-        self._next_out = 0
+        self._rest = RestAlignment()
         self._out_ns = 10_000_000
 
     # -- configuration -------------------------------------------------------------------
@@ -140,12 +133,23 @@ class Seed000(Estimator):
         prm[K.P_SMOUNT] = c["mounting_sigma"]
         prm[K.P_GB], prm[K.P_AB] = c["gyro_bias"], c["accel_bias"]
 
+    def warm_up(self) -> None:
+        """Compile the step kernel for the argument types of a step (the decoder's DOPPLER
+        columns, a multi-frame IMU slice), without running it."""
+        from bench.estimators.jit import compile_for
+        from bench.wire.imu import IMU_SAMPLE_DTYPE
+
+        imu = np.zeros(2, IMU_SAMPLE_DTYPE)
+        sol, qual = np.zeros(2, NAV_SOLUTION_DTYPE), np.zeros(2, NAV_QUALITY_DTYPE)
+        compile_for(K.run_step, self.st, self.P, self.prm, imu["dtheta"], imu["dvel"], imu["t_ns"], _EMPTY_I,
+                    _EMPTY_F, _EMPTY_I, _EMPTY_I, sol, qual)
+
     # -- the step --------------------------------------------------------------------------
     def step(self, inputs: DutInputs) -> EstimatorOutput:
         imu = inputs.imu
         if self.position is None:
             raise ConfigError("the seed000 estimator needs dut.config.initial_position", key="dut.config")
-        if self._coarse:
+        if self._rest.coarse:
             return self._coarse_step(inputs, imu)
         n = len(imu)
         d = inputs.doppler
@@ -164,64 +168,28 @@ class Seed000(Estimator):
 
     def _coarse_step(self, inputs: DutInputs, imu: np.ndarray) -> EstimatorOutput:
         """Sum the increments at rest; output "aligning" epochs at the surveyed position."""
-        if len(imu):
-            if len(imu) > 1:
-                self._gaps.append(np.diff(imu["t_ns"]))
-            self._sum_th += imu["dtheta"].sum(axis=0)
-            self._sum_dv += imu["dvel"].sum(axis=0)
-            self._last = int(imu["t_ns"][-1])
-        out = self._aligning_epochs(inputs.t_ns)
-        if self._last >= self.cfg["coarse_alignment"] * 1e9 and self._last > 0:
-            self._start_fine(self._last)
+        self._rest.add(imu)
+        out = self._rest.epochs(inputs.t_ns, self._out_ns, self.position, self.cfg["position_sigma"])
+        if self._rest.done(self.cfg["coarse_alignment"]):
+            self._start_fine(self._rest.last_ns)
         return out
-
-    def _aligning_epochs(self, t_ns: int) -> EstimatorOutput:
-        if t_ns < self._next_out or self.position is None:
-            return EstimatorOutput()
-        first = -(-self._next_out // self._out_ns) * self._out_ns
-        times = np.arange(first, t_ns + 1, self._out_ns, dtype=np.int64)
-        if not len(times):
-            return EstimatorOutput()
-        self._next_out = int(times[-1]) + self._out_ns
-        sol = np.zeros(len(times), NAV_SOLUTION_DTYPE)
-        sol["t_ns"] = times
-        sol["lat"], sol["lon"], sol["h"] = self.position
-        sol["mode"] = MODE_ALIGNING
-        qual = np.zeros(len(times), NAV_QUALITY_DTYPE)
-        qual["t_ns"] = times
-        qual["sigma_pos"] = self.cfg["position_sigma"]
-        return EstimatorOutput(sol, qual)
 
     def _start_fine(self, t_ns: int) -> None:
         """Coarse attitude from the sums, then the fine alignment's state and covariance."""
         c = self.cfg
-        T = t_ns * 1e-9
         lat, lon, h = self.position  # type: ignore[misc]
-        C = coarse_align(self._sum_dv / T, self._sum_th / T, lat)
         st = self.st
         st[K.S_SINS : K.S_SINS + 3] = lat, lon, h
-        st[K.S_SINS + 6 : K.S_SINS + 10] = dcm_to_quat(C)
+        st[K.S_SINS + 6 : K.S_SINS + 10] = self._rest.attitude(lat)
         st[K.S_PHASE] = 1.0
         st[K.S_TLAST] = t_ns
-        st[K.S_NEXT_OUT] = self._next_out
+        st[K.S_NEXT_OUT] = self._rest.next_out_ns
         st[K.S_ALIGN_END] = round(c["alignment"] * 1e9)
         st[K.S_P0 : K.S_P0 + 3] = lat, lon, h
         st[K.S_MODE] = MODE_ALIGNING
-        gaps = np.concatenate(self._gaps) if self._gaps else np.zeros(0)
-        st[K.S_TNOM] = float(np.median(gaps)) * 1e-9 if len(gaps) else 0.005
-        # coarse errors: level from the accelerometer noise and bias, heading from the
-        # gyro noise over the coarse time (generous; the fine alignment shrinks them)
-        g = 9.8
-        lvl = max(3.0 * c["accel_bias"] / g, math.radians(0.05))
-        hdg = max(10.0 * c["gyro_noise"] / math.sqrt(T) / (7.292115e-5 * math.cos(lat)), math.radians(1.0))
-        diag = np.zeros(K.N_STATES)
-        diag[0:3] = lvl**2, lvl**2, hdg**2
-        diag[3:6] = 0.01**2
-        diag[6:9] = c["position_sigma"] ** 2
-        diag[9:12] = c["gyro_bias"] ** 2
-        diag[12:15] = c["accel_bias"] ** 2
-        self.P[:, :] = np.diag(diag)
-        self._coarse = False
+        st[K.S_TNOM] = self._rest.nominal_step_s()
+        self.P[:, :] = np.diag(core_covariance(K.N_STATES, c, t_ns * 1e-9, lat))
+        self._rest.finish()
 
     @property
     def covariance(self) -> np.ndarray:

@@ -29,13 +29,19 @@ from bench.estimators.ins_model import (
     N_CORE,
     PHI,
     discretize,
-    euler_jacobian,
     ins_error_matrix,
     position_difference,
     position_rate_matrix,
 )
 from bench.estimators.kf import joseph_update, time_update
-from bench.estimators.sins_core import core_feedback, move_position, quat_dcm, rotate_attitude, zupt_update
+from bench.estimators.sins_core import (
+    core_feedback,
+    move_position,
+    quat_dcm,
+    rotate_attitude,
+    write_output,
+    zupt_update,
+)
 from bench.nav.strapdown import _step
 
 __all__ = ["N_STATES", "ST_SIZE", "PRM_SIZE", "run_step"]
@@ -235,31 +241,11 @@ def _measure(st: np.ndarray, P: np.ndarray, prm: np.ndarray) -> None:
 
 @njit(cache=True)
 def _output(st: np.ndarray, P: np.ndarray, t: float, sol: np.ndarray, qual: np.ndarray, k: int) -> None:
-    C = np.zeros((3, 3))
-    quat_dcm(st, S_SINS + 6, C)
     r = sol[k]
-    r.t_ns = np.int64(t)
-    r.lat, r.lon, r.h = st[S_SINS], st[S_SINS + 1], st[S_SINS + 2]
-    for i in range(3):
-        r.vel_n[i] = st[S_SINS + 3 + i]
-    hdg = math.atan2(C[0, 1], C[1, 1])
-    if hdg < 0.0:
-        hdg += 2.0 * math.pi
-    r.heading = hdg
-    r.pitch = math.asin(min(1.0, max(-1.0, C[2, 1])))
-    r.roll = math.atan2(-C[2, 0], C[2, 2])
+    q = qual[k]
+    write_output(st, S_SINS, P, t, r, q)
     r.mode = np.uint8(st[S_MODE])
     r.valid = np.uint8(1 if st[S_PHASE] == 2.0 else 0)
-    q = qual[k]
-    q.t_ns = np.int64(t)
-    J = np.zeros((3, 3))
-    euler_jacobian(C, J)
-    Pa = P[PHI : PHI + 3, PHI : PHI + 3].copy()
-    Pe = J @ Pa @ J.T
-    for i in range(3):
-        q.sigma_pos[i] = math.sqrt(max(P[DR + i, DR + i], 0.0))
-        q.sigma_vel[i] = math.sqrt(max(P[DV + i, DV + i], 0.0))
-        q.sigma_att[i] = math.sqrt(max(Pe[i, i], 0.0))
     q.excluded = np.uint8(FAULT_DOPPLER if st[S_EXCL] > 0.0 else 0)
 
 

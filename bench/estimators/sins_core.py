@@ -15,11 +15,11 @@ import math
 import numpy as np
 from numba import njit
 
-from bench.estimators.ins_model import DR, DV, EPS, NABLA, PHI, position_difference, radii
+from bench.estimators.ins_model import DR, DV, EPS, NABLA, PHI, euler_jacobian, position_difference, radii
 from bench.estimators.kf import joseph_update
 from bench.nav.strapdown import _qmul, _rv2q
 
-__all__ = ["quat_dcm", "rotate_attitude", "move_position", "core_feedback", "zupt_update"]
+__all__ = ["quat_dcm", "rotate_attitude", "move_position", "core_feedback", "zupt_update", "write_output"]
 
 
 @njit(cache=True)
@@ -93,3 +93,29 @@ def zupt_update(sins: np.ndarray, P: np.ndarray, p0: np.ndarray, sigma_v: float,
     x = np.zeros(n)
     joseph_update(x, P, z, H, R)
     return x
+
+
+@njit(cache=True)
+def write_output(st: np.ndarray, off: int, P: np.ndarray, t: float, r, q) -> None:
+    """One output epoch at ``t`` (ns) from the SINS state ``st[off:off+10]`` and the core
+    covariance: the NAV_SOLUTION record ``r`` (time, position, velocity, heading in [0, 2
+    pi), pitch, roll) and the NAV_QUALITY record ``q`` (time and the 1-sigma position,
+    velocity and Euler-angle sigmas). Mode, validity and the fault bytes are the caller's."""
+    C = np.zeros((3, 3))
+    quat_dcm(st, off + 6, C)
+    r.t_ns = np.int64(t)
+    r.lat, r.lon, r.h = st[off], st[off + 1], st[off + 2]
+    for i in range(3):
+        r.vel_n[i] = st[off + 3 + i]
+    hdg = math.atan2(C[0, 1], C[1, 1])
+    r.heading = hdg + 2.0 * math.pi if hdg < 0.0 else hdg
+    r.pitch = math.asin(min(1.0, max(-1.0, C[2, 1])))
+    r.roll = math.atan2(-C[2, 0], C[2, 2])
+    q.t_ns = np.int64(t)
+    J = np.zeros((3, 3))
+    euler_jacobian(C, J)
+    Pe = J @ P[PHI : PHI + 3, PHI : PHI + 3].copy() @ J.T
+    for i in range(3):
+        q.sigma_pos[i] = math.sqrt(max(P[DR + i, DR + i], 0.0))
+        q.sigma_vel[i] = math.sqrt(max(P[DV + i, DV + i], 0.0))
+        q.sigma_att[i] = math.sqrt(max(Pe[i, i], 0.0))
