@@ -4,7 +4,8 @@ The route is the truth track's horizontal path sampled every 2 s (shapely-simpli
 5 cm tolerance), feature ``route``; distractors are parallel streets offset 20 m to the left
 and 25 m to the right along every straight stretch of at least 150 m (shortened 30 m at each
 end so that they do not touch the route), and a 150 m side road leaving every corner (a
-heading change over 45 deg within 20 s) straight on, in the direction the vehicle came from.
+heading change over 45 deg within 20 s) straight on from where the turn starts, in the
+direction the vehicle came from.
 Deterministic: the same scenario gives the same file (tests/scoring/test_map_network.py).
 """
 
@@ -60,10 +61,13 @@ def network_doc(scenario: str) -> dict:
     i = 0
     while i < len(t) - 40:
         if moving[i] and abs(hdg[i + 40] - hdg[i]) > math.radians(45):
-            a = xy[i]
+            # the corner's side road: straight on from where the turn starts (the first
+            # sample off the straight), not from 20 s before it, where it would lie on the
+            # approach to the corner, on the route itself
+            j = i + int(np.argmax(~straight[i:i + 41]))
+            a = xy[j]
             d = np.array([math.sin(hdg[i]), math.cos(hdg[i])])
             turn_i += 1
-            # the corner's side road: straight on from where the turn starts
             feats.append(({"id": f"side{turn_i}", "role": "distractor"}, np.array([a, a + 150.0 * d])))
             i += 80
         else:

@@ -9,6 +9,9 @@ Quantities (error = DUT minus truth, see :mod:`bench.scoring.align`):
 ``vertical``              m      up position error (signed)
 ``position``              m      3-D position error norm
 ``east``, ``north``       m      signed components
+``along_track``           m      signed, along the truth's heading (forward positive: a
+                                 solution lagging behind the vehicle is negative)
+``cross_track``           m      signed, across the truth's heading (right positive)
 ``velocity``              m/s    3-D velocity error norm
 ``velocity_horizontal``   m/s    norm of the east/north velocity error
 ``velocity_east`` ...     m/s    signed components (``_east``, ``_north``, ``_up``)
@@ -26,7 +29,14 @@ epoch), ``growth`` (largest rise of the absolute value within one interval of th
 over its value at the interval's first epoch: the drift through an outage), and for
 horizontal and 3-D position: ``cep50`` and ``cep95`` (horizontal 50 % and 95 % radius),
 ``r95`` and ``sep50`` (3-D 95 % and 50 % radius), ``of_distance`` (max error over the
-window divided by the distance the truth drove within the window; shown in %).
+window divided by the distance the truth drove within the window; shown in %), and the
+per-interval figures of the i2Nav OutageStatistic style, for a window of several intervals
+(one per outage): ``interval_max`` (the largest of the intervals' max errors) and
+``interval_of_distance`` (the largest over the intervals of the interval's max error
+divided by the distance the truth drove in that interval; shown in %; an interval in which
+the vehicle did not move is listed but left out of it). Their details list every interval
+of the window with usable epochs: start and end (s), max error, distance driven (m), and
+the ratio (%).
 Epochs are weighted equally (statistics are per epoch, as the DUT reported them).
 """
 
@@ -41,7 +51,9 @@ from bench.scoring.align import NavErrors
 from bench.scoring.data import DutDataError, NoDataError
 from bench.scoring.windows import Window
 
-__all__ = ["QUANTITIES", "STATS", "QUANTITY_STATS", "accuracy_value", "select", "stat_of", "SIGNED"]
+__all__ = [
+    "QUANTITIES", "STATS", "QUANTITY_STATS", "accuracy_value", "select", "stat_of", "interval_table", "SIGNED",
+]
 
 _Q = Callable[[NavErrors], np.ndarray]
 
@@ -52,6 +64,8 @@ QUANTITIES: dict[str, tuple[str, str, _Q, str]] = {
     "position": ("length", "m", lambda e: np.linalg.norm(e.pos, axis=1), "3-D position error"),
     "east": ("length", "m", lambda e: e.pos[:, 0], "east position error"),
     "north": ("length", "m", lambda e: e.pos[:, 1], "north position error"),
+    "along_track": ("length", "m", lambda e: e.along_cross[:, 0], "along-track position error (forward positive)"),
+    "cross_track": ("length", "m", lambda e: e.along_cross[:, 1], "cross-track position error (right positive)"),
     "velocity": ("velocity", "m/s", lambda e: np.linalg.norm(e.vel, axis=1), "3-D velocity error"),
     "velocity_horizontal": (
         "velocity",
@@ -69,12 +83,15 @@ QUANTITIES: dict[str, tuple[str, str, _Q, str]] = {
     "attitude": ("angle", "arcmin", lambda e: e.att_angle, "attitude error angle (SO(3))"),
 }
 #: Quantities with a sign (``mean`` keeps it; the other statistics use absolute values).
-SIGNED = {"vertical", "east", "north", "velocity_east", "velocity_north", "velocity_up", "heading", "pitch", "roll"}
+SIGNED = {
+    "vertical", "east", "north", "along_track", "cross_track", "velocity_east", "velocity_north", "velocity_up",
+    "heading", "pitch", "roll",
+}
 
 STATS = ("rms", "mean", "std", "max", "p50", "p68", "p95", "p99", "final", "growth")
 _EXTRA = {
-    "horizontal": ("cep50", "cep95", "of_distance"),
-    "position": ("r95", "sep50", "of_distance"),
+    "horizontal": ("cep50", "cep95", "of_distance", "interval_max", "interval_of_distance"),
+    "position": ("r95", "sep50", "of_distance", "interval_max", "interval_of_distance"),
 }
 #: quantity -> its statistics
 QUANTITY_STATS: dict[str, tuple[str, ...]] = {q: STATS + _EXTRA.get(q, ()) for q in QUANTITIES}
@@ -138,6 +155,39 @@ def stat_of(
     raise KeyError(stat)
 
 
+def interval_table(
+    values: np.ndarray, t_ns: np.ndarray, window: Window, distance: Callable[[Window], float] | None
+) -> list[dict[str, Any]]:
+    """Per interval of ``window`` holding selected epochs: start and end (s), the max of the
+    absolute values, the distance driven in the interval (m) and their ratio (%; None when
+    the vehicle did not move)."""
+    if distance is None:
+        raise NoDataError("distance travelled is not available")
+    ids = window.interval_ids(t_ns)
+    rows = []
+    for k in np.unique(ids[ids >= 0]):
+        a, b = window.intervals[k]
+        peak = float(np.max(np.abs(values[ids == k])))
+        d = distance(Window(window.spec, window.intervals[k : k + 1], window.run_end_ns))
+        rows.append({
+            "start_s": float(a) * 1e-9,
+            "end_s": float(b) * 1e-9,
+            "max_error": peak,
+            "distance_m": d,
+            "of_distance_pct": 100.0 * peak / d if d > 0.0 else None,
+        })
+    return rows
+
+
+def _interval_stat(stat: str, rows: list[dict[str, Any]], window: Window) -> float:
+    if stat == "interval_max":
+        return max(r["max_error"] for r in rows)
+    ratios = [r["of_distance_pct"] for r in rows if r["of_distance_pct"] is not None]
+    if not ratios:
+        raise NoDataError(f"the vehicle drove no distance in any interval of window {window.text()}")
+    return max(ratios) / 100.0
+
+
 def accuracy_value(
     quantity: str,
     stat: str,
@@ -148,5 +198,8 @@ def accuracy_value(
     """Value (SI) of ``accuracy.<quantity>.<stat>`` over ``window``, with details."""
     idx = select(errors, window)
     values = QUANTITIES[quantity][2](errors)[idx]
+    if stat.startswith("interval_"):
+        rows = interval_table(values, errors.t_ns[idx], window, distance)
+        return _interval_stat(stat, rows, window), {"epochs": len(idx), "window": window.text(), "intervals": rows}
     value = stat_of(stat, values, errors.t_ns[idx], window, distance)
     return value, {"epochs": len(idx), "window": window.text()}

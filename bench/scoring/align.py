@@ -152,6 +152,8 @@ class NavErrors:
     distance: (M,) truth distance driven since the start, m.
     lat: (M,) truth latitude, rad.
     index: (M,) index of each epoch in the recorded (arrival-order) DUT records.
+    heading: (M,) truth heading (clockwise from north), rad: the along- and cross-track
+        directions of :attr:`along_cross`.
     """
 
     t_ns: np.ndarray
@@ -164,6 +166,15 @@ class NavErrors:
     distance: np.ndarray
     lat: np.ndarray
     index: np.ndarray
+    heading: np.ndarray
+
+    @property
+    def along_cross(self) -> np.ndarray:
+        """(M, 2) horizontal position error along the truth's heading (forward positive: a
+        solution that lags behind the vehicle is negative) and across it (right positive), m."""
+        s, c = np.sin(self.heading), np.cos(self.heading)
+        e, n = self.pos[:, 0], self.pos[:, 1]
+        return np.column_stack([e * s + n * c, e * c - n * s])
 
 
 def nav_errors(truth: np.ndarray, nav: np.ndarray) -> NavErrors:
@@ -195,4 +206,4 @@ def nav_errors(truth: np.ndarray, nav: np.ndarray) -> NavErrors:
     q_err = quat_mul(q_dut, quat_conj(tr.q_bn))
     att_angle = np.linalg.norm(quat_to_rotvec(q_err), axis=1)
     usable = tr.covered & (d["valid"] != 0)
-    return NavErrors(t_ns, usable, tr.covered, pos, vel, att, att_angle, tr.distance, tr.lat, index)
+    return NavErrors(t_ns, usable, tr.covered, pos, vel, att, att_angle, tr.distance, tr.lat, index, tr.euler[:, 0])

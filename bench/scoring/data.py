@@ -39,6 +39,7 @@ __all__ = [
     "BAD_FRAMES",
     "TIMING",
     "COMMANDS",
+    "RECEIVER",
     "TIMING_DTYPE",
 ]
 
@@ -50,6 +51,8 @@ SEGMENTS = "/scenario/segments"
 BAD_FRAMES = "/dut/bad_frames"
 TIMING = "/bench/timing"
 COMMANDS = "/bench/commands"
+#: the BDS receiver's samples with their injected errors (the receiver-alone metrics)
+RECEIVER = "/bds"
 
 #: Records of ``/bench/timing`` in real-time runs: the scheduled bench time of a step and
 #: how late (wall clock against schedule) the bench executed it, ns.
@@ -86,6 +89,8 @@ class RunData:
     bad_frames: ``{t_ns, link, kind, detail}`` of every bad frame from the DUT.
     timing: ``/bench/timing`` records (real-time runs), None if absent.
     commands: ``{t_ns, command}`` of BENCH_CMD events.
+    receiver: ``/bds`` records (the receiver's epochs with their errors at the antenna),
+        None if the run drove no receiver.
     attachments: attached files by name (the test case as ``case/<file>``).
     """
 
@@ -102,6 +107,7 @@ class RunData:
     bad_frames: list[dict[str, Any]] = field(default_factory=list)
     timing: np.ndarray | None = None
     commands: list[dict[str, Any]] = field(default_factory=list)
+    receiver: np.ndarray | None = None
     attachments: dict[str, bytes] = field(default_factory=dict)
 
     def require_truth(self) -> np.ndarray:
@@ -176,5 +182,6 @@ def _load(reader: RecordingReader, path: Path) -> RunData:
         run.segments = list(doc.get("segments", []))
     run.bad_frames = _json(reader, topics, BAD_FRAMES)
     run.commands = _json(reader, topics, COMMANDS)
+    run.receiver = _columnar(reader, topics, RECEIVER)
     run.attachments = reader.attachments()
     return run

@@ -9,7 +9,12 @@ criterion's limits), a display unit and the options a criterion may pass to it:
 * ``frameswitch.<aggregate>`` -- :mod:`bench.scoring.frameswitch` (option ``to``);
 * ``consistency.<quantity>.<stat>`` -- :mod:`bench.scoring.consistency`;
 * ``output.<name>`` -- :mod:`bench.scoring.output` (the integrity measures in
-  :mod:`bench.scoring.epochs`).
+  :mod:`bench.scoring.epochs`);
+* ``map.<name>`` -- :mod:`bench.scoring.mapscore` (the case's ``[scoring.map]`` road
+  network);
+* ``receiver.<quantity>.<stat>`` and ``versus_receiver.<quantity>.<stat>`` --
+  :mod:`bench.scoring.receiver` (the BDS receiver alone on the same run, and the DUT's
+  figure over it).
 
 Values are SI floats (counts as floats, fractions as fractions); ``inf`` is a real
 measurement (a fault never detected, an error that never settles).
@@ -21,7 +26,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -33,8 +38,19 @@ from bench.scoring.epochs import OutputIntegrity
 from bench.scoring.faults import FLAGS, FaultAnalysis, FaultSettings, analyse_faults
 from bench.scoring.frameswitch import FRAMES, SWITCH_QUANTITIES, SwitchAnalysis, SwitchSettings, analyse_switches
 from bench.scoring.integrity import Integrity, check_integrity
+from bench.scoring.mapscore import MAP_METRICS, MapSettings, load_network, map_window
 from bench.scoring.output import OUTPUT_METRICS, output_value
+from bench.scoring.receiver import (
+    RATIO_STATS,
+    RECEIVER_QUANTITIES,
+    RECEIVER_STATS,
+    receiver_value,
+    versus_receiver_value,
+)
 from bench.scoring.windows import Window, WindowSpec, resolve_window
+
+if TYPE_CHECKING:
+    from bench.scoring.roadmap import RoadNetwork
 
 __all__ = ["MetricSpec", "METRICS", "metric_spec", "ScoringSettings", "MetricValue", "Scorer", "OPTION_CHOICES"]
 
@@ -94,7 +110,7 @@ def _catalogue() -> dict[str, MetricSpec]:
     out: dict[str, MetricSpec] = {}
     for q, (dim, unit, _, text) in QUANTITIES.items():
         for s in QUANTITY_STATS[q]:
-            d, u = ("dimensionless", "%") if s == "of_distance" else (dim, unit)
+            d, u = ("dimensionless", "%") if s.endswith("of_distance") else (dim, unit)
             name = f"accuracy.{q}.{s}"
             out[name] = MetricSpec(name, "accuracy", d, u, f"{s} of the {text}")
     for n, (dim, unit, text) in _FAULTS.items():
@@ -119,6 +135,17 @@ def _catalogue() -> dict[str, MetricSpec]:
             out[name] = MetricSpec(name, "consistency", "dimensionless", unit, f"{q} NEES: {text}")
     for n, (dim, unit, text) in OUTPUT_METRICS.items():
         out[f"output.{n}"] = MetricSpec(f"output.{n}", "output", dim, unit, text)
+    for n, (dim, unit, text) in MAP_METRICS.items():
+        out[f"map.{n}"] = MetricSpec(f"map.{n}", "map", dim, unit, text)
+    for q, (dim, unit, text) in RECEIVER_QUANTITIES.items():
+        for s in RECEIVER_STATS[q]:
+            name = f"receiver.{q}.{s}"
+            out[name] = MetricSpec(name, "receiver", dim, unit, f"{s} of the BDS receiver's own {text} (its fixes)")
+        for s in RATIO_STATS[q]:
+            name = f"versus_receiver.{q}.{s}"
+            out[name] = MetricSpec(
+                name, "versus_receiver", "dimensionless", "1", f"{s} of the {text} over the receiver's own, same window"
+            )
     return out
 
 
@@ -142,6 +169,7 @@ class ScoringSettings:
     nominal_period_ns: int = 10_000_000
     budget_ns: int | None = None
     output_integrity: OutputIntegrity = field(default_factory=OutputIntegrity)
+    map: MapSettings | None = None
 
 
 @dataclass
@@ -161,6 +189,7 @@ class Scorer:
         self._windows: dict[WindowSpec, Window] = {}
         self._faults: dict[tuple, FaultAnalysis] = {}
         self._switches: dict[tuple, SwitchAnalysis] = {}
+        self._map: dict[WindowSpec, tuple[dict[str, float], dict[str, Any]]] = {}
 
     @cached_property
     def errors(self) -> NavErrors:
@@ -230,7 +259,31 @@ class Scorer:
         if ms.family == "frameswitch":
             sa = self.switch_analysis(spec, options.get("to"))
             return MetricValue(sa.value(parts[1]), sa.details())
+        if ms.family == "receiver":
+            v, det = receiver_value(parts[1], parts[2], self.run, window)
+            return MetricValue(v, det)
+        if ms.family == "versus_receiver":
+            v, det = versus_receiver_value(parts[1], parts[2], self.run, self.errors, window)
+            return MetricValue(v, det)
+        if ms.family == "map":
+            values, det = self.map_analysis(spec)
+            return MetricValue(values[name.removeprefix("map.")], dict(det))
         raise KeyError(name)
+
+    @cached_property
+    def network(self) -> RoadNetwork:
+        """The case's road network (NoDataError when the case has none or it cannot be read)."""
+        if self.settings.map is None:
+            raise NoDataError("the case names no road network ([scoring.map] network)")
+        return load_network(self.run, self.settings.map)
+
+    def map_analysis(self, spec: WindowSpec) -> tuple[dict[str, float], dict[str, Any]]:
+        """Every ``map.*`` value over window ``spec`` and their details."""
+        if spec not in self._map:
+            net = self.network
+            assert self.settings.map is not None
+            self._map[spec] = map_window(net, self.run, self.errors, self.window(spec), self.settings.map.tolerance)
+        return self._map[spec]
 
     def fault_analysis(self, spec: WindowSpec, options: Mapping[str, Any]) -> FaultAnalysis:
         targets = options.get("target", ())
@@ -263,10 +316,14 @@ class Scorer:
         return self._switches[key]
 
     def overview(self) -> dict[str, Any]:
-        """A fixed set of figures for the report, whatever the criteria: accuracy over the
-        whole run and after convergence, per segment, and output quality."""
+        """A fixed set of figures for the report, whatever the criteria: accuracy (and the
+        map metrics of a case with a road network, the receiver alone and the DUT over it
+        for a run with a BDS receiver) over the whole run and after convergence, per
+        segment, and output quality."""
         out: dict[str, Any] = {}
         rows = [("all", WindowSpec("all")), ("converged", WindowSpec("converged", converged=True))]
+        road = ("map.on_road", "map.lateral.rms", "map.distractor_max") if self.settings.map is not None else ()
+        rx = ("receiver.position.rms", "versus_receiver.position.rms") if self.run.receiver is not None else ()
         for label, spec in rows:
             block: dict[str, Any] = {}
             for m in (
@@ -278,6 +335,8 @@ class Scorer:
                 "accuracy.heading.rms",
                 "accuracy.heading.max",
                 "accuracy.level.max",
+                *road,
+                *rx,
             ):
                 try:
                     block[m] = _finite(self.metric(m, spec).value)

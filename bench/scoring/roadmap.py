@@ -19,6 +19,7 @@ import shapely
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
+from bench.config.files import TEXT_LIMIT, read_bytes
 from bench.errors import ConfigError
 
 R_EARTH = 6_378_137.0
@@ -64,18 +65,28 @@ class RoadNetwork:
         self.is_route = np.array([r == "route" for r in role])
         self._geoms = shapely.linestrings(np.stack([self.a, self.b], axis=1))
         self._tree = shapely.STRtree(self._geoms)
+        # per segment as plain floats (start east, north; b - a; length; length squared;
+        # heading): the matcher's few candidates are computed without numpy's per-call cost
+        self._seg = [(ax, ay, dx, dy, ln, ln * ln, h) for (ax, ay), (dx, dy), ln, h in
+                     zip(self.a.tolist(), d.tolist(), self.length.tolist(), self.heading.tolist(), strict=True)]
+        self._radius = np.array([math.nan])  # the last search radius, as the tree query takes it
         self._build_graph()
 
     # ---- loading ---------------------------------------------------------------------------
     @classmethod
     def from_geojson(cls, path: str | Path, origin: tuple[float, float] | None = None) -> RoadNetwork:
         """Load a network file; ``origin`` (lat, lon, rad) defaults to the first vertex."""
-        p = str(path)
+        text = read_bytes(path, what="road network file", limit=TEXT_LIMIT)  # a regular file of bounded size
+        return cls.from_geojson_text(text, file=str(path), origin=origin)
+
+    @classmethod
+    def from_geojson_text(cls, text: str | bytes, *, file: str, origin: tuple[float, float] | None = None
+                          ) -> RoadNetwork:
+        """A network from the text of a GeoJSON file (``file`` names it in errors)."""
+        p = file
         try:
-            doc = json.loads(Path(path).read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise ConfigError("road network file not found", file=p) from None
-        except (OSError, ValueError) as exc:
+            doc = json.loads(text)
+        except ValueError as exc:
             raise ConfigError(f"malformed GeoJSON: {exc}", file=p) from None
         if not isinstance(doc, dict) or doc.get("type") != "FeatureCollection":
             raise ConfigError("expected a GeoJSON FeatureCollection", file=p, key="type")
@@ -120,6 +131,10 @@ class RoadNetwork:
         n = (lat - self.lat0) * R_EARTH
         return np.stack([e, n], axis=-1)
 
+    def to_enu_point(self, lat: float, lon: float) -> tuple[float, float]:
+        """:meth:`to_enu` of one point, as floats (the same arithmetic, without arrays)."""
+        return float((lon - self.lon0) * R_EARTH * math.cos(self.lat0)), float((lat - self.lat0) * R_EARTH)
+
     def to_latlon(self, east: float, north: float) -> tuple[float, float]:
         """Inverse of :meth:`to_enu` (rad)."""
         return self.lat0 + north / R_EARTH, self.lon0 + east / (R_EARTH * math.cos(self.lat0))
@@ -134,17 +149,35 @@ class RoadNetwork:
 
     def candidates(self, east: float, north: float, radius: float) -> list[Candidate]:
         """Segments within ``radius`` m of a point, nearest first."""
-        idx = self._tree.query(shapely.points(east, north), predicate="dwithin", distance=radius)
-        idx = np.asarray(idx, dtype=int)
-        if idx.size == 0:
+        # a one-point array (the same query, without the scalar's broadcasting)
+        if self._radius[0] != radius:
+            self._radius = np.array([radius], dtype=float)
+        segs = self._tree.query(shapely.points(np.array([[east, north]])), predicate="dwithin",
+                                distance=self._radius)[1].tolist()
+        if not segs:
             return []
-        dist, along = self.project(idx, np.full(idx.size, east), np.full(idx.size, north))
+        # :meth:`project` element by element on plain floats (the same operations in the same
+        # order; np.clip's semantics, -0.0 and nan kept), np.hypot and np.argsort as there
+        qx, qy, along = [], [], []
+        seg_data = self._seg
+        for i in segs:
+            ax, ay, dx, dy, ln, l2, _ = seg_data[i]
+            px, py = east - ax, north - ay
+            s = (px * dx + py * dy) / l2
+            s = 0.0 if s < 0.0 else (1.0 if s > 1.0 else s)
+            qx.append(px - s * dx)
+            qy.append(py - s * dy)
+            along.append(s * ln)
+        dist = np.hypot(qx, qy)
+        order = dist.argsort().tolist()  # (np.argsort's own call)
+        dl = dist.tolist()
         out = []
-        for j in np.argsort(dist):
-            i = int(idx[j])
-            f = along[j] / self.length[i]
-            p = self.a[i] + f * (self.b[i] - self.a[i])
-            out.append(Candidate(i, float(p[0]), float(p[1]), float(dist[j]), float(along[j]), float(self.heading[i])))
+        for k in order:
+            i = segs[k]
+            ax, ay, dx, dy, ln, _, h = seg_data[i]
+            s = along[k]
+            f = s / ln  # the point on the segment: a + (along / length) (b - a)
+            out.append(Candidate(i, ax + f * dx, ay + f * dy, dl[k], s, h))
         return out
 
     def nearest(
@@ -175,6 +208,11 @@ class RoadNetwork:
         self._graph = csr_matrix((w, (np.concatenate([self.node_a, self.node_b]),
                                       np.concatenate([self.node_b, self.node_a]))), shape=(n, n))
         self._dist_cache: dict[int, tuple[np.ndarray, float]] = {}
+        #: (segment i, segment j) -> (limit, the node-to-node distances a-a, a-b, b-a, b-b) as
+        #: read from the arrays of _dist_cache (limit: the smaller of the two arrays' limits);
+        #: cleared whenever _dist_cache changes, so an entry is what those arrays hold now
+        self._pair_cache: dict[tuple[int, int], tuple[float, float, float, float, float]] = {}
+        self._nodes = list(zip(self.node_a.tolist(), self.node_b.tolist(), strict=True))
 
     def _from_node(self, node: int, limit: float) -> np.ndarray:
         got = self._dist_cache.get(node)
@@ -184,16 +222,37 @@ class RoadNetwork:
             if len(self._dist_cache) > 4096:
                 self._dist_cache.clear()
             self._dist_cache[node] = got
+            self._pair_cache.clear()
         return got[0]
+
+    def _pair(self, i: int, j: int, limit: float) -> tuple[float, float, float, float]:
+        """The node-to-node distances a-a, a-b, b-a, b-b from segment ``i`` to segment ``j``,
+        read as route_distance always read them; kept in ``_pair_cache`` while both arrays
+        they were read from stay cached."""
+        (a1, b1), (a2, b2) = self._nodes[i], self._nodes[j]
+        da = self._from_node(a1, limit)
+        daa, dab = float(da[a2]), float(da[b2])
+        db = self._from_node(b1, limit)
+        dba, dbb = float(db[a2]), float(db[b2])
+        ga, gb = self._dist_cache.get(a1), self._dist_cache.get(b1)
+        if ga is not None and gb is not None and ga[0] is da and gb[0] is db:
+            self._pair_cache[(i, j)] = (min(ga[1], gb[1]), daa, dab, dba, dbb)
+        return daa, dab, dba, dbb
 
     def route_distance(self, c1: Candidate, c2: Candidate, limit: float = 500.0) -> float:
         """Shortest distance along the network between two candidate points (inf beyond ``limit``)."""
-        if c1.segment == c2.segment:
-            return abs(c2.along - c1.along)
         i, j = c1.segment, c2.segment
-        best = math.inf
-        for n1, d1 in ((self.node_a[i], c1.along), (self.node_b[i], self.length[i] - c1.along)):
-            dist = self._from_node(int(n1), limit)
-            for n2, d2 in ((self.node_a[j], c2.along), (self.node_b[j], self.length[j] - c2.along)):
-                best = min(best, d1 + dist[n2] + d2)
-        return best
+        if i == j:
+            return abs(c2.along - c1.along)
+        got = self._pair_cache.get((i, j))
+        if got is None or got[0] < limit:  # _from_node would (re)compute an array: through it
+            daa, dab, dba, dbb = self._pair(i, j, limit)
+        else:
+            _, daa, dab, dba, dbb = got
+        u1, u2 = c1.along, c2.along
+        v1, v2 = self._seg[i][4] - u1, self._seg[j][4] - u2
+        # the four ways in, in their order: start node of i to start node of j, ... end to end
+        best = min(math.inf, u1 + daa + u2)
+        best = min(best, u1 + dab + v2)
+        best = min(best, v1 + dba + u2)
+        return min(best, v1 + dbb + v2)

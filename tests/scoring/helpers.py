@@ -17,7 +17,7 @@ from bench.record.mcap_io import RecordingWriter
 from bench.scenario.motion import build_profile
 from bench.scenario.records import TRUTH_TOPIC, truth_records
 from bench.scenario.trajectory import Trajectory, truth_at
-from bench.scoring.data import BAD_FRAMES, COMMANDS, SEGMENTS, TIMING, TIMING_DTYPE
+from bench.scoring.data import BAD_FRAMES, COMMANDS, RECEIVER, SEGMENTS, TIMING, TIMING_DTYPE
 from bench.topics import NAV_QUALITY_DTYPE, NAV_QUALITY_TOPIC, NAV_SOLUTION_DTYPE, NAV_SOLUTION_TOPIC
 
 ARCMIN = math.radians(1.0 / 60.0)
@@ -115,6 +115,7 @@ def write_recording(
     reason: str = "",
     run_start: dict[str, Any] | None = None,
     attachments: dict[str, bytes] | None = None,
+    receiver: np.ndarray | None = None,
 ) -> Path:
     """A recording laid out as the run engine writes one."""
     with RecordingWriter(path) as rec:
@@ -143,5 +144,8 @@ def write_recording(
         if timing is not None:
             rec.columnar_topic(TIMING, "bench.Timing", TIMING_DTYPE)
             rec.write_block(TIMING, timing)
+        if receiver is not None:
+            rec.columnar_topic(RECEIVER, "bench.BdsSample", receiver.dtype)
+            rec.write_block(RECEIVER, receiver)
         rec.close(status, reason)
     return path
