@@ -184,7 +184,7 @@ class CaseItem(pytest.Item):
         self.config.stash[_RESULTS].append(self.result)
         self.user_properties.append(("verdict", str(self.result.verdict)))
         for cr in self.result.criteria:
-            label = cr.criterion.id + (f"[{cr.variant}]" if cr.variant else "")
+            label = cr.label
             self.user_properties.append((f"criterion {label}", f"{cr.verdict}: {_value_text(cr)}"))
         if self.result.verdict is Verdict.ERROR:
             pytest.fail(self._table(), pytrace=False)  # raised in setup: reported as an error

@@ -6,7 +6,9 @@ the metric's dimension. An optional band next to the limit turns a pass into MAR
 ``marginal`` (absolute, in the metric's units) or ``marginal_relative`` (a fraction of
 the limit's magnitude). ``relative_to`` makes the criterion a comparison of two variants
 of the DUT run with the same seeds: the value is the metric of this variant divided by the
-same metric of the named one (dimensionless).
+same metric of the named one (dimensionless). ``must_fail_on`` names negative controls:
+variants run without what the criterion checks (a compensation switched off), on which the
+criterion must FAIL on every run -- proof that it can tell the DUT from one without it.
 
 Over Monte Carlo runs (``[monte_carlo]``):
 
@@ -173,6 +175,7 @@ class Criterion:
     description: str = ""
     variant: str | None = None
     relative_to: str | None = None
+    must_fail_on: tuple[str, ...] = ()
     options: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
     monte_carlo: MonteCarlo = field(default_factory=MonteCarlo)
 
@@ -193,6 +196,13 @@ class Criterion:
             )
         if self.relative_to is not None and (self.variant is None or self.relative_to == self.variant):
             raise ConfigError("a comparison (relative_to) names another variant it judges", key="relative_to")
+        if self.must_fail_on and self.relative_to is not None:
+            raise ConfigError("a comparison (relative_to) takes no negative control", key="must_fail_on")
+        if self.variant is not None and self.variant in self.must_fail_on:
+            raise ConfigError(f"variant {self.variant!r} cannot be both judged and a negative control",
+                              key="must_fail_on")
+        if len(set(self.must_fail_on)) != len(self.must_fail_on):
+            raise ConfigError(f"a variant listed twice: {list(self.must_fail_on)}", key="must_fail_on")
 
     def band(self) -> float:
         """The marginal band, SI (0 without one)."""

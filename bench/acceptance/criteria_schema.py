@@ -9,6 +9,7 @@ from __future__ import annotations
 import difflib
 import math
 from collections.abc import Callable, Mapping
+from pathlib import Path
 from typing import Any, TypeVar
 
 from bench.acceptance.case import ClockSpec, DutSpec, RunSpec
@@ -19,11 +20,12 @@ from bench.errors import ConfigError
 from bench.scenario.motion import GNSS_FLAGS, SEGMENT_KINDS
 from bench.scoring.faults import FLAGS, FaultSettings, target_bit
 from bench.scoring.frameswitch import SwitchSettings
+from bench.scoring.mapscore import MapSettings
 from bench.scoring.metrics import METRICS, OPTION_CHOICES, ScoringSettings
 from bench.scoring.windows import WindowSpec
 from bench.units import quantity
 
-__all__ = ["window_spec", "scoring_settings", "criteria"]
+__all__ = ["window_spec", "scoring_settings", "map_settings", "criteria"]
 
 _ID = r"[A-Za-z0-9][A-Za-z0-9_.-]*"
 _T = TypeVar("_T")
@@ -86,9 +88,31 @@ def window_spec(value: Any, owner: Table, key: str, named: Mapping[str, WindowSp
     return WindowSpec(name or spec.describe(), *list(spec.__dict__.values())[1:])
 
 
-def scoring_settings(t: Table | None, dut: DutSpec, clock: ClockSpec) -> ScoringSettings:
-    """``[scoring]``: convergence, named windows, fault, frame-switch, consistency and
-    output-integrity settings."""
+def map_settings(t: Table | None, base: Path | None, check_files: bool) -> MapSettings | None:
+    """``[scoring.map]``: the road network (GeoJSON, relative to the case file) of the
+    ``map.*`` metrics and their lateral tolerance; the file is loaded to check it."""
+    if t is None:
+        return None
+    network = str(t.str("network", required=True, expect="a GeoJSON road network such as 'scenarios/roads.geojson'"))
+    tolerance = float(t.quantity("tolerance", "length", "m", 5.0, positive=True))  # type: ignore[arg-type]
+    t.finish()
+    p = Path(network)
+    path = p if p.is_absolute() else (base / p).resolve() if base is not None else None
+    if check_files and path is not None:
+        from bench.scoring.roadmap import RoadNetwork
+
+        try:
+            RoadNetwork.from_geojson(path)
+        except ConfigError as exc:
+            raise t.error("network", str(exc)) from None
+    return MapSettings(network, path, tolerance)
+
+
+def scoring_settings(
+    t: Table | None, dut: DutSpec, clock: ClockSpec, base: Path | None = None, check_files: bool = False
+) -> ScoringSettings:
+    """``[scoring]``: convergence, named windows, fault, frame-switch, consistency,
+    output-integrity and map settings."""
     period = round(1e9 / dut.output_rate_hz)
     budget = clock.budget_ns if clock.mode == "realtime" else None
     if t is None:
@@ -133,8 +157,9 @@ def scoring_settings(t: Table | None, dut: DutSpec, clock: ClockSpec) -> Scoring
         if not 0.0 < confidence < 1.0:
             raise ct.error("confidence", f"expected a probability between 0 and 1 (or %), found {confidence:g}")
     integrity = parse_integrity(t.table("integrity"), int(convergence))  # type: ignore[arg-type]
+    road = map_settings(t.table("map"), base, check_files)
     t.finish()
-    return ScoringSettings(int(convergence), named, faults, switches, confidence, period, budget, integrity)  # type: ignore[arg-type]
+    return ScoringSettings(int(convergence), named, faults, switches, confidence, period, budget, integrity, road)  # type: ignore[arg-type]
 
 
 # -- criteria ------------------------------------------------------------------------------
@@ -158,6 +183,9 @@ def _criterion(
         hint = f"; did you mean {', '.join(close)}?" if close else "; see docs/scoring.md for the catalogue"
         raise t.error("metric", f"unknown metric {metric!r}{hint}")
     spec = METRICS[str(metric)]
+    if spec.family == "map" and scoring.map is None:
+        raise t.error("metric", f"metric {metric} needs a road network: add [scoring.map] with network = "
+                      "'<file>.geojson' (relative to the case file)")
     reqs = t.str_list("requirement", required=True)
     if not reqs:
         raise t.error("requirement", "expected at least one requirement id")
@@ -175,6 +203,13 @@ def _criterion(
         raise t.error("relative_to", "a variant cannot be compared with itself")
     if relative_to is not None and variant is None:
         raise t.error("variant", "missing field; a comparison (relative_to) names the variant it judges")
+    controls = tuple(t.str_list("must_fail_on"))
+    for v in controls:
+        if v not in dut.variants:
+            raise t.error("must_fail_on", f"unknown variant {v!r}; [dut.variants] defines: "
+                          f"{', '.join(dut.variants) or 'none'}")
+    if controls and relative_to is not None:  # before the limit, which a comparison reads as a ratio
+        raise t.error("must_fail_on", "a comparison (relative_to) takes no negative control")
     dimension, unit_default = ("dimensionless", "1") if relative_to else (spec.dimension, spec.unit)
     unit = t.str("unit", unit_default)
     if dimension != "count" and unit != unit_default:
@@ -259,6 +294,7 @@ def _criterion(
         description=str(description),
         variant=variant,
         relative_to=relative_to,
+        must_fail_on=controls,
         options=options,
         monte_carlo=mc,
     )

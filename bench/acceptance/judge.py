@@ -8,7 +8,14 @@ criterion makes what the DUT's output leaves unmeasurable FAIL), then every crit
 run's variant from the recording alone -- the case's own criteria and the default output
 integrity criteria (:mod:`bench.acceptance.integrity_criteria`) it was loaded with.
 :func:`judge_case` combines the runs of a case (variants, Monte Carlo seeds, variant
-comparisons) into criterion and case verdicts.
+comparisons, negative controls) into criterion and case verdicts.
+
+A criterion's negative controls (``must_fail_on``: variants run without what it checks)
+are measured like any run but judged the other way round: the criterion must FAIL on every
+run of the control, beyond its marginal band; a control that passes (or only just fails)
+is a FAIL of the criterion -- it cannot tell the DUT from one without what it checks -- and
+a control the bench could not measure is an ERROR. A control never turns a FAIL of the DUT
+into a PASS: it only adds a result of its own.
 
 Live runs are judged by scoring their finished recording with the very same functions,
 so ``bench score`` reproduces a live verdict bit for bit.
@@ -72,6 +79,14 @@ class CriterionResult:
     variant: str | None
     aggregate: Aggregate
     runs: list[RunValue]
+    control: bool = False  # a negative control (must_fail_on): the criterion had to FAIL
+
+    @property
+    def label(self) -> str:
+        """``ID``, ``ID[variant]``, or ``ID[variant, must FAIL]`` for a negative control."""
+        if not self.variant:
+            return self.criterion.id
+        return f"{self.criterion.id}[{self.variant}{', must FAIL' if self.control else ''}]"
 
     @property
     def verdict(self) -> Verdict:
@@ -105,14 +120,15 @@ def case_of(run: RunData) -> TestCase:
 
 
 def _applies(c: Criterion, variant: str | None) -> bool:
-    return c.variant is None or c.variant == variant
+    return (c.variant is None and variant not in c.must_fail_on) or c.variant == variant
 
 
 def _judged(c: Criterion, variant: str | None) -> bool:
-    """Whether a run of ``variant`` measures ``c`` (a comparison: both its variants)."""
+    """Whether a run of ``variant`` measures ``c`` (a comparison: both its variants; a
+    negative control: its control variants too)."""
     if c.relative_to is not None:
         return variant in (c.variant, c.relative_to)
-    return _applies(c, variant)
+    return _applies(c, variant) or variant in c.must_fail_on
 
 
 def score_run(run: RunData, case: TestCase) -> RunResult:
@@ -139,7 +155,7 @@ def score_run(run: RunData, case: TestCase) -> RunResult:
     checked = {c.id: _measure(scorer, c, seed, integ.bench, integ.dut) for c in criteria if c.id.startswith(PREFIX)}
     broken = [f"its output failed {k}" for k, v in checked.items() if v.verdict is Verdict.FAIL]
     for c in criteria:
-        compared = c.relative_to is not None
+        compared = c.relative_to is not None or variant in c.must_fail_on  # not this run's own verdict
         if mode != "realtime" and c.metric in NOT_IN_LOCKSTEP:
             rv = RunValue(seed, math.nan, Verdict.NA, _NA_LOCKSTEP)
         else:
@@ -152,12 +168,17 @@ def score_run(run: RunData, case: TestCase) -> RunResult:
         result.overview = scorer.overview() if not integ.bench else {}
     except (NoDataError, DutDataError):
         result.overview = {}
+    # a run's own verdict: the criteria judged run by run (Monte Carlo mode "each"); a value
+    # that only feeds a statistic over the runs (pass_runs, percentile, aggregate) is judged
+    # there, in the criterion's verdict, not here
+    own = [result.values[c.id].verdict for c in criteria
+           if c.id in result.values and c.monte_carlo.mode == "each"]
     if integ.bench:
         result.verdict = Verdict.ERROR
     elif integ.dut:
-        result.verdict = worst([Verdict.FAIL, *(v.verdict for v in result.values.values())])
+        result.verdict = worst([Verdict.FAIL, *own])
     else:
-        result.verdict = worst(v.verdict for v in result.values.values())
+        result.verdict = worst(own)
     return result
 
 
@@ -199,6 +220,67 @@ def _ratio(c: Criterion, mine: RunValue, base: RunValue) -> RunValue:
     return RunValue(mine.seed, value, verdict, "", {"value": mine.value, "baseline": base.value})
 
 
+_CANNOT_TELL = "meets the limit on the negative control: the criterion cannot tell the DUT from one without " \
+    "what it checks"
+
+
+def _inverted(c: Criterion, margin: float) -> tuple[Verdict, str]:
+    """A control's verdict from its margin against the limit (positive: meets it)."""
+    if margin >= 0.0:
+        return Verdict.FAIL, _CANNOT_TELL
+    if -margin < c.band():
+        return Verdict.MARGINAL, "fails on the negative control only inside the marginal band"
+    return Verdict.PASS, "fails on the negative control, as it must"
+
+
+def _control(c: Criterion, rv: RunValue) -> RunValue:
+    """A negative control's run judged the other way round (module docstring)."""
+    if rv.verdict in (Verdict.NA, Verdict.ERROR):
+        return rv
+    if math.isnan(rv.value):  # its output could not be measured: no evidence either way
+        return RunValue(rv.seed, rv.value, Verdict.FAIL, f"the control could not be measured: {rv.reason}")
+    _, margin = judge_value(c.limit, 0.0, rv.value)
+    if math.isnan(margin):
+        return RunValue(rv.seed, rv.value, Verdict.ERROR, "metric undefined (NaN)")
+    verdict, reason = _inverted(c, margin)
+    return RunValue(rv.seed, rv.value, verdict, reason, rv.details)
+
+
+def _controls(c: Criterion, values: list[RunValue], runs: list[RunValue] | None = None) -> Aggregate:
+    """A negative control's runs judged together (module docstring); ``runs``: each of
+    ``values`` as :func:`_control` judged it, if the caller has them.
+
+    In Monte Carlo mode ``each`` every run of the control must FAIL the limit beyond the
+    band: the worst control run decides, and the value shown is the control run nearest to
+    passing. In the other modes the control's aggregate over its runs (the mean, the
+    percentile bound, the passing count), computed as for the DUT, must FAIL. The margin
+    is how far the control fails (positive when it does)."""
+    if not values:
+        return Aggregate(math.nan, Verdict.ERROR, math.nan, "no run of the negative control to judge")
+    if c.monte_carlo.mode != "each":
+        agg = aggregate_runs(c, values)
+        if agg.verdict in (Verdict.ERROR, Verdict.NA):
+            return agg
+        if not agg.verdict.passed and (math.isnan(agg.value) or math.isnan(agg.margin)):
+            return Aggregate(agg.value, Verdict.FAIL, math.nan, f"the control could not be measured: {agg.reason}")
+        verdict, reason = _inverted(c, agg.margin)
+        if verdict is Verdict.FAIL:
+            reason = f"{reason} ({c.monte_carlo.text()})"
+        return Aggregate(agg.value, verdict, -agg.margin, reason)
+    if runs is None:
+        runs = [_control(c, rv) for rv in values]
+    judged = [r for r in runs if r.verdict is not Verdict.NA]
+    if not judged:  # not applicable to any run (a latency in lockstep)
+        return Aggregate(math.nan, Verdict.NA, math.nan, values[0].reason)
+    worst_run = max(judged, key=lambda r: r.verdict.rank)
+    measured = [r for r in judged if not math.isnan(r.value)]
+    if worst_run.verdict is Verdict.ERROR or not measured:
+        return Aggregate(math.nan, worst_run.verdict, math.nan, worst_run.reason or "not measured")
+    nearest = max(measured, key=lambda r: judge_value(c.limit, 0.0, r.value)[1])
+    margin = -judge_value(c.limit, 0.0, nearest.value)[1]
+    return Aggregate(nearest.value, worst_run.verdict, margin, worst_run.reason)
+
+
 def judge_case(case: TestCase, runs: list[RunResult], errors: list[str] | None = None) -> CaseResult:
     """Combine the runs of a case into per-criterion and case verdicts."""
     out = CaseResult(case.id, case.title, case.file_name, case.requirements, Verdict.PASS, runs=runs, case=case)
@@ -206,7 +288,7 @@ def judge_case(case: TestCase, runs: list[RunResult], errors: list[str] | None =
     out.waived = waivers(case.scoring)
     variants = case.variants()
     for c in case.criteria:
-        targets = [c.variant] if c.variant is not None else variants
+        targets = [c.variant] if c.variant is not None else [v for v in variants if v not in c.must_fail_on]
         for v in targets:
             mine = [r for r in runs if r.variant == v]
             if c.relative_to is None:
@@ -221,6 +303,10 @@ def judge_case(case: TestCase, runs: list[RunResult], errors: list[str] | None =
                         why = f"no {c.relative_to} run with seed {r.seed}"
                         values.append(RunValue(r.seed, math.nan, Verdict.ERROR, why))
             out.criteria.append(CriterionResult(c, v, aggregate_runs(c, values), values))
+        for v in c.must_fail_on:
+            values = [r.raw[c.id] for r in runs if r.variant == v and c.id in r.raw]
+            judged = [_control(c, rv) for rv in values]
+            out.criteria.append(CriterionResult(c, v, _controls(c, values, judged), judged, control=True))
     verdicts = [cr.verdict for cr in out.criteria] + [r.verdict for r in runs]
     if out.errors or not runs:
         verdicts.append(Verdict.ERROR)

@@ -130,7 +130,8 @@ def run_start_metadata(case: TestCase, seed: int, runner: str, **extra: Any) -> 
 
 def case_attachments(case: TestCase) -> list[tuple[str, bytes, str]]:
     """``(name, data, media type)`` of the files a recording carries: the case itself as
-    ``case/<file>`` (so ``bench score`` can re-judge without it) and its scenario files."""
+    ``case/<file>`` (so ``bench score`` can re-judge without it), its scenario and fault
+    files, and the road network of its map metrics as ``map/<file>``."""
     out = [(f"case/{case.file_name}", case.text.encode(), "application/toml")]
     ref = case.scenario
     paths = [scenario_file(case), ref.resolve(ref.driver), ref.resolve(ref.vehicle)]
@@ -141,6 +142,9 @@ def case_attachments(case: TestCase) -> list[tuple[str, bytes, str]]:
         p = ref.resolve(name)
         if p is not None and p.is_file():
             out.append((f"faults/{p.name}", p.read_bytes(), "application/toml"))
+    road = case.scoring.map
+    if road is not None and road.path is not None and road.path.is_file():
+        out.append((road.attachment, road.path.read_bytes(), "application/geo+json"))
     return out
 
 

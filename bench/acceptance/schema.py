@@ -98,7 +98,7 @@ def build_case(
     dut = _dut(top.table("dut", required=True), base, check_files)  # type: ignore[arg-type]
     clock = clock_spec(top.table("clock"))
     run = run_spec(top.table("run"))
-    scoring = scoring_settings(top.table("scoring"), dut, clock)
+    scoring = scoring_settings(top.table("scoring"), dut, clock, base, check_files)
     criteria = parse_criteria(top.tables("criterion"), scoring, tuple(requirements), dut, run)
     if not criteria:
         raise ConfigError("expected at least one [[criterion]] table", file=file, key="criterion")

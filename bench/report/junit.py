@@ -47,7 +47,7 @@ def junit_xml(cases: Sequence[CaseResult], name: str = "bench accept") -> ET.Ele
         per = cr.elapsed_s / max(1, len(cr.criteria))
         for res in cr.criteria:
             j = criterion_json(res)
-            label = res.criterion.id + (f"[{res.variant}]" if res.variant else "")
+            label = res.label
             tc = ET.SubElement(suite, "testcase", classname=cr.case_id, name=label, time=f"{per:.3f}")
             tp = ET.SubElement(tc, "properties")
             for r in res.criterion.requirements:

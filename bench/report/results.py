@@ -7,11 +7,14 @@ Layout (``results.json`` of ``bench accept``; ``bench score --json``)::
                 "integrity_waived": [{"check", "criterion", "reason"}],
                 "criteria": [{"id", "requirements", "metric", "window", "limit",
                               "unit", "value", "margin", "verdict", "reason",
-                              "paper", "variant", "relative_to", "monte_carlo",
+                              "paper", "variant", "relative_to", "control",
+                              "must_fail_on", "monte_carlo",
                               "runs": [{"seed", "value", "verdict", "reason"}]}],
                 "runs": [{"recording", "variant", "seed", "verdict",
                           "bench_issues", "dut_issues", "notes", "timing", "overview"}]}]}
 
+A criterion has one entry per variant it judges and one per negative control
+(``"control": true``, the variant it had to FAIL on; its verdict is PASS when it did).
 Values are in the criterion's display unit (``value_si`` holds SI); an infinite value is
 the string ``"inf"``, an unmeasured one ``null``. Times of the run (wall clock) live in
 ``"run_info"`` only, so two judgements of the same recordings give identical ``cases``.
@@ -77,6 +80,8 @@ def criterion_json(cr: CriterionResult) -> dict[str, Any]:
         "paper": c.paper,
         "variant": cr.variant,
         "relative_to": c.relative_to,
+        "control": cr.control,
+        "must_fail_on": list(c.must_fail_on),
         "monte_carlo": c.monte_carlo.text(),
         "runs": [
             {"seed": r.seed, "value": num(c.display(r.value)), "verdict": str(r.verdict), "reason": r.reason}

@@ -1,7 +1,9 @@
 """Summary tables of an acceptance run, for terminals (text) and documents (Markdown).
 
 One row per criterion and variant: case, variant, criterion, requirement, what is
-measured over which window, the value, the limit, the paper's figure and the verdict;
+measured over which window, the value, the limit, the paper's figure and the verdict (a
+negative control's row says ``(control)`` and ``must fail``: its PASS is the limit failing
+it);
 then one row per case with its verdict and what went wrong.
 
 The rows and lines are built raw; the text table shows them through
@@ -43,15 +45,19 @@ def summary_rows(cases: Sequence[CaseResult]) -> list[tuple[str, ...]]:
             what = f"{j['metric']} / {j['window']}"
             if j["relative_to"]:
                 what += f" ÷ {j['relative_to']}"
+            variant, limit = res.variant or "", j["limit"]
+            if res.control:  # a negative control: PASS means the limit failed it, as it must
+                what += " (negative control: must FAIL)"
+                variant, limit = f"{variant} (control)", f"must fail {limit}"
             rows.append(
                 (
                     cr.case_id,
-                    res.variant or "",
+                    variant,
                     res.criterion.id,
                     ", ".join(j["requirements"]),
                     what,
                     _value(j),
-                    j["limit"],
+                    limit,
                     j["paper"],
                     str(res.verdict),
                 )
@@ -84,7 +90,7 @@ def reason_lines(cases: Sequence[CaseResult]) -> list[str]:
     for cr in cases:
         for res in cr.criteria:
             if res.aggregate.reason and res.verdict.value in ("FAIL", "ERROR", "N/A"):
-                label = res.criterion.id + (f"[{res.variant}]" if res.variant else "")
+                label = res.label
                 out.append(f"  {cr.case_id} {label}: {res.verdict}: {res.aggregate.reason}")
     return out
 
