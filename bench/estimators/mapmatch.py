@@ -55,8 +55,22 @@ class _Epoch:
     lat: float
     lon: float
     cands: list[Candidate]
-    score: np.ndarray  # best log-probability per candidate
-    back: np.ndarray  # predecessor index per candidate (-1: chain start)
+    score: list[float]  # best log-probability per candidate
+    back: list[int]  # predecessor index per candidate (-1: chain start)
+
+
+def _argmax(v: list[float]) -> int:
+    """``np.argmax`` of a list: the first nan, else the first of the largest."""
+    k, best = 0, v[0]
+    if best != best:
+        return 0
+    for i in range(1, len(v)):
+        x = v[i]
+        if not x <= best:  # larger, or nan
+            k, best = i, x
+            if x != x:
+                break
+    return k
 
 
 class OnlineMatcher:
@@ -76,22 +90,27 @@ class OnlineMatcher:
         self.lag, self.min_speed, self.speed_ref, self.max_gap = int(lag), min_speed, speed_ref, max_gap
         self._win: deque[_Epoch] = deque()
         self._pending: deque[Match] = deque()
+        self._vmax = [1.5 * v for v in network.max_speed.tolist()]  # per segment: faster routes penalized
 
-    def _obs(self, cands: list[Candidate], heading: float, speed: float) -> np.ndarray:
-        d = np.array([c.distance for c in cands])
-        lp = -0.5 * (d / self.sd) ** 2
+    def _obs(self, cands: list[Candidate], heading: float, speed: float) -> list[float]:
+        """Observation log-probability per candidate (eq. 23): the numpy formulation's
+        operations on floats (``x ** 2`` as ``x * x``, np.abs and np.minimum as abs and min),
+        the heading difference wrapped by np.exp and np.angle as before."""
+        sd = self.sd
+        lp = [-0.5 * ((c.distance / sd) * (c.distance / sd)) for c in cands]
         if speed >= self.min_speed and math.isfinite(heading):
             sh = self.sh * self.speed_ref / max(speed, self.speed_ref)
             h = np.array([c.heading for c in cands])
-            dh = np.angle(np.exp(1j * (heading - h)))  # wrapped to (-pi, pi]
-            dh = np.minimum(np.abs(dh), math.pi - np.abs(dh))  # roads are two-way
-            lp = lp - 0.5 * (dh / sh) ** 2
+            wrapped = np.angle(np.exp(1j * (heading - h))).tolist()  # to (-pi, pi]
+            for j, dh in enumerate(wrapped):
+                dh = abs(dh)
+                dh = min(dh, math.pi - dh)  # roads are two-way
+                lp[j] = lp[j] - 0.5 * ((dh / sh) * (dh / sh))
         return lp
 
     def update(self, t_ns: int, lat: float, lon: float, heading: float, speed: float) -> Match | None:
         """Add one epoch; return the final decision for the epoch ``lag`` updates back (or None)."""
-        en = self.net.to_enu(lat, lon)
-        e, n = float(en[0]), float(en[1])
+        e, n = self.net.to_enu_point(lat, lon)
         cands = self.net.candidates(e, n, self.radius)
         last = self._win[-1] if self._win else None
         if not cands:
@@ -101,24 +120,28 @@ class OnlineMatcher:
         obs = self._obs(cands, heading, speed)
         if last is None or (t_ns - last.t_ns) * 1e-9 > self.max_gap:
             self._flush()
-            ep = _Epoch(t_ns, e, n, lat, lon, cands, obs, np.full(len(cands), -1))
+            ep = _Epoch(t_ns, e, n, lat, lon, cands, obs, [-1] * len(cands))
         else:
             straight = math.hypot(e - last.east, n - last.north)
             limit = straight + 10 * self.beta + 50.0
             dt = max((t_ns - last.t_ns) * 1e-9, 1e-3)
-            tr = np.empty((len(last.cands), len(cands)))
-            for i, ci in enumerate(last.cands):
-                for j, cj in enumerate(cands):
-                    r = self.net.route_distance(ci, cj, limit)
-                    lp = -abs(straight - r) / self.beta if math.isfinite(r) else -1e9
-                    vmax = self.net.max_speed[cj.segment]
-                    if math.isfinite(r) and r / dt > 1.5 * vmax:
-                        lp -= (r / dt - 1.5 * vmax) / 1.0
-                    tr[i, j] = lp
-            tot = last.score[:, None] + tr
-            back = np.argmax(tot, axis=0)
-            score = tot[back, np.arange(len(cands))] + obs
-            score -= score.max()  # keep numbers small
+            route, beta = self.net.route_distance, self.beta
+            vmax = [self._vmax[c.segment] for c in cands]
+            cols: list[list[float]] = [[] for _ in cands]  # per candidate: from each of the last
+            for ci, si in zip(last.cands, last.score, strict=True):
+                for cj, vm, col in zip(cands, vmax, cols, strict=True):
+                    r = route(ci, cj, limit)
+                    if math.isfinite(r):
+                        lp = -abs(straight - r) / beta
+                        if r / dt > vm:
+                            lp -= (r / dt - vm) / 1.0
+                    else:
+                        lp = -1e9
+                    col.append(si + lp)
+            back = [_argmax(col) for col in cols]
+            score = [col[b] + o for col, b, o in zip(cols, back, obs, strict=True)]
+            top = math.nan if any(x != x for x in score) else max(score)
+            score = [x - top for x in score]  # keep numbers small
             ep = _Epoch(t_ns, e, n, lat, lon, cands, score, back)
         self._win.append(ep)
         if len(self._win) > self.lag:
@@ -126,10 +149,10 @@ class OnlineMatcher:
         return self._pending.popleft() if self._pending else None
 
     def _path(self) -> list[int]:
-        k = int(np.argmax(self._win[-1].score))
+        k = _argmax(self._win[-1].score)
         path = [k]
         for ep in reversed(list(self._win)[1:]):
-            k = int(ep.back[k])
+            k = ep.back[k]
             path.append(k)
         return path[::-1]
 
@@ -145,9 +168,8 @@ class OnlineMatcher:
         self._emit(old, k)
         if self._win:  # the decision is final: the next epoch's chain starts from it only
             nxt = self._win[0]
-            keep = nxt.back == k
-            nxt.score = np.where(keep, nxt.score, -np.inf)
-            nxt.back = np.full(len(nxt.cands), -1)
+            nxt.score = [x if b == k else -math.inf for x, b in zip(nxt.score, nxt.back, strict=True)]
+            nxt.back = [-1] * len(nxt.cands)
 
     def _flush(self) -> None:
         """Decide every epoch still in the window (end of a chain)."""

@@ -33,12 +33,12 @@ import numpy as np
 
 from bench.config.table import check_keys
 from bench.dut import MODE_ALIGNING, NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE, DutInputs, Estimator, EstimatorOutput
+from bench.dut.estimator import CanView
 from bench.errors import ConfigError
 from bench.estimators import seed001_kernel as K  # noqa: N812 - the kernel layout constants
+from bench.estimators.rest_alignment import RestAlignment, core_covariance
 from bench.estimators.seed001_meas import DDT, DK, MK
 from bench.estimators.settings import period_ns, surveyed_position
-from bench.nav.alignment import coarse_align
-from bench.nav.rotation import dcm_to_quat
 from bench.units import quantity
 
 __all__ = ["Seed001", "CONFIG_KEYS", "VECTOR_KEYS"]
@@ -78,6 +78,7 @@ CONFIG_KEYS: dict[str, tuple[str, str, float]] = {
 VECTOR_KEYS: dict[str, tuple[str, str, tuple[float, float, float]]] = {
     "lever_arm": ("length", "m", (0.0, 0.0, 0.0)),
     "odometer_lever_arm": ("length", "m", (0.0, 0.0, 0.0)),
+    "nhc_lever_arm": ("length", "m", (0.0, 0.0, 0.0)),
     "bds_markov_sigma": ("length", "m", (0.57, 2.53, 2.22)),
     "odometer_noise": ("velocity", "m/s", (0.1, 0.05, 0.1)),
 }
@@ -91,6 +92,8 @@ _SWITCHES = {
 _OTHER_KEYS = ("initial_position", "road_network")
 _EMPTY_I = np.zeros(0, np.int64)
 _EMPTY_F = np.zeros(0)
+_ODO_COLUMNS = ("rx_ns", "speed", "valid")
+_OUT_BLOCK = 4096  # output records allocated at once
 
 
 def _vector(config: Mapping[str, Any], key: str) -> np.ndarray:
@@ -116,16 +119,14 @@ class Seed001(Estimator):
         self.xm = np.zeros(3)
         self.hist = np.zeros((K.HIST_LEN, 14))
         self._pending = np.zeros((0, K.FIX_COLS))
-        self._coarse = True
-        self._sum_th = np.zeros(3)
-        self._sum_dv = np.zeros(3)
-        self._gaps: list[np.ndarray] = []
-        self._last = 0
-        self._next_out = 0
+        self._rest = RestAlignment()
         self._out_ns = 10_000_000
         self._matcher: Any = None
         self._mm_sent: dict[int, tuple[float, float]] = {}
         self._mm_offset = (0.0, 0.0)
+        self._sol_block = np.zeros(0, NAV_SOLUTION_DTYPE)
+        self._qual_block = np.zeros(0, NAV_QUALITY_DTYPE)
+        self._out_at = 0
 
     # -- configuration -------------------------------------------------------------------
     def configure(self, config: Mapping[str, Any]) -> None:
@@ -171,6 +172,7 @@ class Seed001(Estimator):
         p[K.P_ODOPER] = period_ns(1.0 / c["odometer_rate"], "dut.config.odometer_rate")
         p[K.P_ODOR : K.P_ODOR + 3] = vec["odometer_noise"]
         p[K.P_OL : K.P_OL + 3] = vec["odometer_lever_arm"]
+        p[K.P_NL : K.P_NL + 3] = vec["nhc_lever_arm"]
         p[K.P_KS] = c["odometer_scale_sigma"]
         p[K.P_KQ] = c["odometer_scale_sigma"] / math.sqrt(3600.0)  # grows by its prior sigma in an hour
         p[K.P_ZT], p[K.P_ZA], p[K.P_ZW] = c["zupt_time"], c["zupt_accel_std"], c["zupt_rate"]
@@ -213,22 +215,37 @@ class Seed001(Estimator):
         """The filter's covariance (20, 20), a copy."""
         return self.P.copy()
 
+    def warm_up(self) -> None:
+        """Compile the step kernel for the argument types of a step, without running it."""
+        from bench.estimators.jit import compile_for
+        from bench.wire.imu import IMU_SAMPLE_DTYPE
+
+        imu = np.zeros(2, IMU_SAMPLE_DTYPE)  # two frames: field views as a step's (not contiguous)
+        compile_for(K.run_step, self.st, self.P, self.prm, self.xm, self.hist, imu["dtheta"], imu["dvel"],
+                    imu["t_ns"], _EMPTY_I, _EMPTY_F, _EMPTY_I, self._pending, np.zeros(2, NAV_SOLUTION_DTYPE),
+                    np.zeros(2, NAV_QUALITY_DTYPE))
+
     # -- the step --------------------------------------------------------------------------
     def step(self, inputs: DutInputs) -> EstimatorOutput:
         if self.position is None:
             raise ConfigError("the seed001 estimator needs dut.config.initial_position", key="dut.config")
         self._take_fixes(inputs)
         imu = inputs.imu
-        if self._coarse:
+        if self._rest.coarse:
             return self._coarse_step(inputs, imu)
-        o = inputs.odometer
-        if len(o["rx_ns"]):
-            o_t, o_v, o_ok = o["rx_ns"].astype(np.int64), o["speed"].astype(float), o["valid"].astype(np.int64)
+        can = inputs.can
+        if type(can) is CanView:  # the bench's: the three columns, without the message's dict
+            o = can.columns("ODOMETER", _ODO_COLUMNS)
+            o_t, o_v, o_ok = o if o is not None else (_EMPTY_I, _EMPTY_F, _EMPTY_I)
+        else:
+            odo = inputs.odometer
+            o_t, o_v, o_ok = (odo[key] for key in _ODO_COLUMNS)
+        if len(o_t):
+            o_t, o_v, o_ok = o_t.astype(np.int64, copy=False), o_v.astype(float, copy=False), \
+                o_ok.astype(np.int64, copy=False)
         else:
             o_t, o_v, o_ok = _EMPTY_I, _EMPTY_F, _EMPTY_I
-        n = len(imu)
-        sol = np.zeros(n, NAV_SOLUTION_DTYPE)
-        qual = np.zeros(n, NAV_QUALITY_DTYPE)
+        sol, qual = self._out_records(len(imu))
         k = K.run_step(self.st, self.P, self.prm, self.xm, self.hist, imu["dtheta"], imu["dvel"], imu["t_ns"],
                        o_t, o_v, o_ok, self._pending, sol, qual)
         self._pending = self._pending[int(self.st[K.S_CONSUMED]) :]
@@ -238,6 +255,18 @@ class Seed001(Estimator):
         if self._matcher is not None:
             self._map_match(sol)
         return EstimatorOutput(sol, qual)
+
+    def _out_records(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """``n`` zeroed NAV_SOLUTION and NAV_QUALITY records for a step's epochs: the next
+        unused rows of two blocks allocated together (no two steps share a row; what a step
+        returns are views of its own rows, as zeroed as arrays of their own)."""
+        a = self._out_at
+        if a + n > len(self._sol_block):
+            m = max(n, _OUT_BLOCK)
+            self._sol_block, self._qual_block = np.zeros(m, NAV_SOLUTION_DTYPE), np.zeros(m, NAV_QUALITY_DTYPE)
+            a = 0
+        self._out_at = a + n
+        return self._sol_block[a : a + n], self._qual_block[a : a + n]
 
     def _take_fixes(self, inputs: DutInputs) -> None:
         g = inputs.gnss
@@ -250,73 +279,44 @@ class Seed001(Estimator):
         self._pending = np.ascontiguousarray(allrows[np.argsort(allrows[:, 0], kind="stable")])
 
     def _coarse_step(self, inputs: DutInputs, imu: np.ndarray) -> EstimatorOutput:
-        if len(imu):
-            if len(imu) > 1:
-                self._gaps.append(np.diff(imu["t_ns"]))
-            self._sum_th += imu["dtheta"].sum(axis=0)
-            self._sum_dv += imu["dvel"].sum(axis=0)
-            self._last = int(imu["t_ns"][-1])
-        out = self._aligning_epochs(inputs.t_ns)
-        if self._last >= self.cfg["coarse_alignment"] * 1e9 and self._last > 0:
-            self._start_fine(self._last)
+        """Sum the increments at rest; output "aligning" epochs at the surveyed position."""
+        self._rest.add(imu)
+        out = self._rest.epochs(inputs.t_ns, self._out_ns, self.position, self.cfg["position_sigma"])
+        if self._rest.done(self.cfg["coarse_alignment"]):
+            self._start_fine(self._rest.last_ns)
         return out
-
-    def _aligning_epochs(self, t_ns: int) -> EstimatorOutput:
-        if t_ns < self._next_out or self.position is None:
-            return EstimatorOutput()
-        first = -(-self._next_out // self._out_ns) * self._out_ns
-        times = np.arange(first, t_ns + 1, self._out_ns, dtype=np.int64)
-        if not len(times):
-            return EstimatorOutput()
-        self._next_out = int(times[-1]) + self._out_ns
-        sol = np.zeros(len(times), NAV_SOLUTION_DTYPE)
-        sol["t_ns"] = times
-        sol["lat"], sol["lon"], sol["h"] = self.position
-        sol["mode"] = MODE_ALIGNING
-        qual = np.zeros(len(times), NAV_QUALITY_DTYPE)
-        qual["t_ns"] = times
-        qual["sigma_pos"] = self.cfg["position_sigma"]
-        return EstimatorOutput(sol, qual)
 
     def _start_fine(self, t_ns: int) -> None:
         c = self.cfg
-        T = t_ns * 1e-9
         lat, lon, h = self.position  # type: ignore[misc]
-        C = coarse_align(self._sum_dv / T, self._sum_th / T, lat)
         st = self.st
         st[K.S_SINS : K.S_SINS + 3] = lat, lon, h
-        st[K.S_SINS + 6 : K.S_SINS + 10] = dcm_to_quat(C)
-        st[K.S_PHASE], st[K.S_TLAST], st[K.S_NEXT_OUT] = 1.0, t_ns, self._next_out
+        st[K.S_SINS + 6 : K.S_SINS + 10] = self._rest.attitude(lat)
+        st[K.S_PHASE], st[K.S_TLAST], st[K.S_NEXT_OUT] = 1.0, t_ns, self._rest.next_out_ns
         st[K.S_ALIGN_END] = round(c["alignment"] * 1e9)
         st[K.S_P0 : K.S_P0 + 3] = lat, lon, h
         st[K.S_MODE] = MODE_ALIGNING
         st[K.S_STILL] = -1.0
         st[K.S_LAST_BDS] = st[K.S_LAST_ODO] = -1e18
-        gaps = np.concatenate(self._gaps) if self._gaps else np.zeros(0)
-        st[K.S_TNOM] = float(np.median(gaps)) * 1e-9 if len(gaps) else 0.005
-        lvl = max(3.0 * c["accel_bias"] / 9.8, math.radians(0.05))
-        hdg = max(10.0 * c["gyro_noise"] / math.sqrt(T) / (7.292115e-5 * math.cos(lat)), math.radians(1.0))
-        diag = np.zeros(K.N_STATES)
-        diag[0:3] = lvl**2, lvl**2, hdg**2
-        diag[3:6] = 0.01**2
-        diag[6:9] = c["position_sigma"] ** 2
-        diag[9:12] = c["gyro_bias"] ** 2
-        diag[12:15] = c["accel_bias"] ** 2
+        st[K.S_TNOM] = self._rest.nominal_step_s()
+        diag = core_covariance(K.N_STATES, c, t_ns * 1e-9, lat)
         diag[DK] = c["odometer_scale_sigma"] ** 2
         diag[DDT] = c["time_offset_sigma"] ** 2 if self.switch["time_offset_estimation"] else 0.0
         diag[MK : MK + 3] = self.prm[K.P_MS : K.P_MS + 3] ** 2
         self.P[:, :] = np.diag(diag)
-        self._coarse = False
+        self._rest.finish()
 
     # -- map matching ----------------------------------------------------------------------
     def _map_match(self, sol: np.ndarray) -> None:
         """Output positions on the road: the matcher at each 10 Hz epoch, its offset from the
         filter applied to the epochs between."""
-        for i in range(len(sol)):
-            r = sol[i]
-            if r["valid"] and int(r["t_ns"]) % 100_000_000 == 0:
+        lat, lon = sol["lat"], sol["lon"]
+        times = sol["t_ns"].tolist()
+        for i, ok in enumerate(sol["valid"].tolist()):  # (plain ints: a record's fields are slow to read)
+            if ok and times[i] % 100_000_000 == 0:
+                r = sol[i]
                 v = r["vel_n"]
-                t = int(r["t_ns"])
+                t = times[i]
                 self._mm_sent[t] = (float(r["lat"]), float(r["lon"]))
                 m = self._matcher.update(t, float(r["lat"]), float(r["lon"]), float(r["heading"]),
                                          float(math.hypot(v[0], v[1])))
@@ -327,9 +327,9 @@ class Seed001(Estimator):
                     self._mm_offset = (m.lat - lat0, m.lon - lon0) if m.matched else (0.0, 0.0)
                     for k in [k for k in self._mm_sent if k <= m.t_ns]:
                         del self._mm_sent[k]
-            if r["valid"]:
-                sol["lat"][i] += self._mm_offset[0]
-                sol["lon"][i] += self._mm_offset[1]
+            if ok:
+                lat[i] += self._mm_offset[0]
+                lon[i] += self._mm_offset[1]
 
 
 def _matcher(path: Any) -> Any:

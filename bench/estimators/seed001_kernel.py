@@ -17,10 +17,10 @@ import numpy as np
 from numba import njit
 
 from bench.dut import FAULT_BDS, MODE_BDS, MODE_INERTIAL, MODE_MULTI_SENSOR, MODE_ODOMETER
-from bench.estimators.ins_model import DR, DV, PHI, discretize, euler_jacobian, ins_error_matrix, radii
+from bench.estimators.ins_model import DV, PHI, discretize, ins_error_matrix, radii
 from bench.estimators.kf import time_update
 from bench.estimators.seed001_meas import DDT, DK, MK, N_STATES, bds_update, hist_push, nhc_update, zero_velocity
-from bench.estimators.sins_core import core_feedback, quat_dcm, zupt_update
+from bench.estimators.sins_core import core_feedback, quat_dcm, write_output, zupt_update
 from bench.nav.strapdown import _step
 
 __all__ = ["N_STATES", "ST_SIZE", "PRM_SIZE", "HIST_LEN", "FIX_COLS", "run_step"]
@@ -55,6 +55,7 @@ P_KS, P_KQ = 30, 31  # scale-factor prior sigma, random walk 1/sqrt(s)
 P_ZT, P_ZA, P_ZW, P_ZS, P_ZN = 32, 33, 34, 35, 36  # still time s, accel std, rate, speed, ZUPT noise
 P_BDSAGE, P_ODOTO = 37, 38  # ns: BDS counts as aiding for, odometer sample valid for
 P_QG, P_QA = 39, 40  # random-walk densities of the gyro and accelerometer biases (instability)
+P_NL = 41  # 3: the point the non-holonomic constraint holds at (body RFU, m)
 PRM_SIZE = 44
 HIST_LEN = 400  # 2 s of 200 Hz frames
 FIX_COLS = 10
@@ -171,7 +172,7 @@ def _odometer(st, P, prm, xm, t) -> None:
     else:
         r = prm[P_ODOR : P_ODOR + 3].copy()
         nhc_update(P, x, sins, st[S_W : S_W + 3].copy(), st[S_OV] * (1.0 - st[S_K]),
-                   prm[P_OL : P_OL + 3].copy(), r)
+                   prm[P_OL : P_OL + 3].copy(), prm[P_NL : P_NL + 3].copy(), r)
     _apply(st, x, xm)
     st[S_LAST_ODO] = t
 
@@ -179,28 +180,11 @@ def _odometer(st, P, prm, xm, t) -> None:
 @njit(cache=True)
 def _output(st: np.ndarray, P: np.ndarray, prm: np.ndarray, t: float, sol: np.ndarray, qual: np.ndarray,
             k: int) -> None:
-    C = np.zeros((3, 3))
-    quat_dcm(st, S_SINS + 6, C)
     r = sol[k]
-    r.t_ns = np.int64(t)
-    r.lat, r.lon, r.h = st[S_SINS], st[S_SINS + 1], st[S_SINS + 2]
-    for i in range(3):
-        r.vel_n[i] = st[S_SINS + 3 + i]
-    hdg = math.atan2(C[0, 1], C[1, 1])
-    r.heading = hdg + 2.0 * math.pi if hdg < 0.0 else hdg
-    r.pitch = math.asin(min(1.0, max(-1.0, C[2, 1])))
-    r.roll = math.atan2(-C[2, 0], C[2, 2])
+    q = qual[k]
+    write_output(st, S_SINS, P, t, r, q)
     r.mode = np.uint8(st[S_MODE])
     r.valid = np.uint8(1 if st[S_PHASE] == 2.0 else 0)
-    q = qual[k]
-    q.t_ns = np.int64(t)
-    J = np.zeros((3, 3))
-    euler_jacobian(C, J)
-    Pe = J @ P[PHI : PHI + 3, PHI : PHI + 3].copy() @ J.T
-    for i in range(3):
-        q.sigma_pos[i] = math.sqrt(max(P[DR + i, DR + i], 0.0))
-        q.sigma_vel[i] = math.sqrt(max(P[DV + i, DV + i], 0.0))
-        q.sigma_att[i] = math.sqrt(max(Pe[i, i], 0.0))
     q.fault_detected = np.uint8(FAULT_BDS if t < st[S_FD_UNTIL] else 0)
     q.excluded = np.uint8(FAULT_BDS if t < st[S_EX_UNTIL] else 0)
 

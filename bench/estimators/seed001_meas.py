@@ -15,7 +15,8 @@ minus the fix, in metres (E, N, U) and m/s (E, N)::
     z_v = dv + [(C (w x l)) x] phi - a ddt + noise
 
 Odometer with the non-holonomic constraint (eq. 20): the INS velocity in the body frame
-(right, forward, up) at the odometer minus (0, v_odo (1 - k), 0); zero velocity when
+(right, forward, up) minus (0, v_odo (1 - k), 0), the forward row at the wheel and the
+lateral and vertical rows at the point the constraint holds at; zero velocity when
 stopped.
 """
 
@@ -159,19 +160,23 @@ def bds_update(
 
 @njit(cache=True)
 def nhc_update(
-    P: np.ndarray, x: np.ndarray, sins: np.ndarray, w: np.ndarray, speed: float, lever: np.ndarray, r: np.ndarray
+    P: np.ndarray, x: np.ndarray, sins: np.ndarray, w: np.ndarray, speed: float, lever: np.ndarray,
+    nhc_lever: np.ndarray, r: np.ndarray
 ) -> None:
-    """Odometer forward speed ``speed`` (compensated, m/s) and the non-holonomic
-    constraint: body velocity (right, forward, up) at the odometer (lever arm ``lever``,
-    body, m; body rate ``w`` rad/s) = (0, speed, 0); ``r`` (3,) noise sigmas, m/s."""
+    """Odometer forward speed ``speed`` (compensated, m/s) at the wheel (lever arm
+    ``lever``, body, m) and the non-holonomic constraint at the point ``nhc_lever`` (the
+    rear axle's centre, where the body neither slides nor lifts): body velocity (right,
+    forward, up) = (0 there, ``speed`` at the wheel, 0 there); ``w`` the body rate, rad/s;
+    ``r`` (3,) noise sigmas, m/s."""
     n = P.shape[0]
     C = np.zeros((3, 3))
     quat_dcm(sins, 6, C)
     v = sins[3:6]
     vb = C.T @ v
-    vb[0] += w[1] * lever[2] - w[2] * lever[1]
+    # the body velocity at a point l: vb + w x l (row 1 at the wheel, rows 0 and 2 at the NHC point)
+    vb[0] += w[1] * nhc_lever[2] - w[2] * nhc_lever[1]
     vb[1] += w[2] * lever[0] - w[0] * lever[2]
-    vb[2] += w[0] * lever[1] - w[1] * lever[0]
+    vb[2] += w[0] * nhc_lever[1] - w[1] * nhc_lever[0]
     sk = np.zeros((3, 3))
     _skew_rows(sk, 0, 0, v[0], v[1], v[2])
     Mphi = -(C.T @ sk)

@@ -3,6 +3,8 @@ time-offset state, the odometer through an outage, consistency, configuration er
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -97,6 +99,27 @@ def test_a_gross_fix_is_gated_out_and_flagged(drive):
     assert np.abs(e[t > 199.0, :2]).max() < 1.0  # the bad fix did not pull the solution
 
 
+def test_each_step_returns_records_of_its_own(drive):
+    """The output records come from blocks allocated ahead: no two steps' outputs share a
+    row, over several blocks, and no later step writes into what an earlier one returned."""
+    est = create_estimator("seed001", BASE)
+    outs = []
+    step = est.step
+
+    def keep(inputs):
+        out = step(inputs)
+        outs.append((out.solutions, out.qualities, out.solutions.tobytes(), out.qualities.tobytes()))
+        return out
+
+    est.step = keep  # type: ignore[method-assign]
+    run(est, drive, fixes(drive, 1))
+    parts = [o for o in outs if len(o[0])]
+    assert sum(len(o[0]) for o in parts) > 3 * 4096  # several blocks
+    for (s0, q0, _, _), (s1, q1, _, _) in itertools.pairwise(parts):
+        assert not np.shares_memory(s0, s1) and not np.shares_memory(q0, q1)
+    assert all(s.tobytes() == sb and q.tobytes() == qb for s, q, sb, qb in parts)
+
+
 def test_configuration_errors_name_the_key():
     cases = [
         ({"lever_arm": [0.5, 1.2]}, "dut.config.lever_arm"),
@@ -157,3 +180,62 @@ def test_map_matching_hook_puts_the_matched_position_on_the_output(drive):
     assert np.all(sol["lat"][~on] == plain["lat"][~on])
     calls = np.array(matcher.calls)
     assert len(calls) and np.all(calls % 100_000_000 == 0)
+
+
+def _network(tmp_path, drive) -> str:
+    """The drive's own road (its truth track every second) and a parallel distractor 20 m
+    to its left, as a GeoJSON file."""
+    import json
+    import math
+
+    k = np.arange(0, len(drive.t), 200)
+    lat, lon = np.degrees(drive.pos[k, 0]), np.degrees(drive.pos[k, 1])
+    moving = np.hypot(drive.vel[k, 0], drive.vel[k, 1]) > 0.5
+    lat, lon = lat[moving], lon[moving]
+    route = [[float(a), float(b)] for a, b in zip(lon, lat, strict=True)]
+    # the distractor: the first straight stretch shifted 20 m to the left of the travel
+    v = drive.vel[k][moving][:10]
+    u = v[:, :2].mean(axis=0) / np.linalg.norm(v[:, :2].mean(axis=0))
+    left_e, left_n = -u[1] * 20.0, u[0] * 20.0
+    m_lat, m_lon = 1.0 / 6378137.0, 1.0 / (6378137.0 * math.cos(math.radians(lat[0])))
+    par = [[lo + math.degrees(left_e * m_lon), la + math.degrees(left_n * m_lat)] for lo, la in route[:10]]
+    feats = [("route", "route", route), ("parallel", "distractor", par)]
+    doc = {"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"id": i, "role": r}, "geometry": {"type": "LineString", "coordinates": c}}
+        for i, r, c in feats]}
+    path = tmp_path / "roads.geojson"
+    path.write_text(json.dumps(doc))
+    return str(path)
+
+
+def test_the_real_matcher_inside_seed001_puts_the_output_on_the_road(drive, tmp_path):
+    """map_matching = true with a road network file: bench.estimators.mapmatch inside the
+    estimator, on a drive whose fixes carry a correlated error that pulls the filter off the
+    road; the matched output is on the road and never on the distractor."""
+    from bench.scoring.roadmap import RoadNetwork
+
+    path = _network(tmp_path, drive)
+    g = fixes(drive, 7, markov=(1.5, 1.5, 0.5), tau=30.0)
+    cfg = {**BASE, "bds_markov_sigma": [1.5, 1.5, 0.5], "bds_markov_tau": 30.0}
+    plain, _ = run(create_estimator("seed001", cfg), drive, g)
+    sol, _ = run(create_estimator("seed001", {**cfg, "map_matching": True, "road_network": path}), drive, g)
+    net = RoadNetwork.from_geojson(path)
+    ok = (sol["valid"] == 1) & (sol["t_ns"] > 80e9)  # moving, the matcher started
+    assert ok.sum() > 1000
+
+    def lateral(s):
+        en = net.to_enu(s["lat"][ok], s["lon"][ok])  # rad
+        _, d = net.nearest(en[:, 0], en[:, 1], mask=net.is_route)
+        _, d_dis = net.nearest(en[:, 0], en[:, 1], mask=~net.is_route)
+        return d, d_dis
+
+    d_plain, _ = lateral(plain)
+    d_mm, d_dis = lateral(sol)
+    print(f"lateral to the road: plain p95 {np.percentile(d_plain, 95):.2f} m, matched p95 "
+          f"{np.percentile(d_mm, 95):.2f} m")
+    assert np.percentile(d_plain, 95) > 0.5  # the correlated fixes pull the filter off the road
+    assert np.mean(d_mm < 0.5) >= 0.99
+    assert np.percentile(d_mm, 95) < 0.5 * np.percentile(d_plain, 95)
+    assert not np.any(d_dis < d_mm)  # never nearer the distractor than the road
+    # the filter itself is untouched: the velocity and attitude are the plain run's
+    assert np.array_equal(sol["vel_n"], plain["vel_n"])
