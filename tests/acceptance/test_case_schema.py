@@ -186,3 +186,18 @@ def test_sensor_tables_merge_the_case_over_the_scenario():
     doc = load_scenario(paths.test_cases_dir() / "scenarios" / "S002_tracked_odometer.toml").doc
     assert sensor_tables(s002, doc)["odometer"]["model"] == "seed002"  # the scenario's own suite
     assert len(s002.faults) == 7 and s002.fault_files == ("faults/S002_odometer.toml",)
+
+
+
+def test_s001_judges_every_variant_on_complete_valid_output():
+    """The accuracy and map statistics are over the epochs the DUT delivered valid: the
+    bench's output-integrity criteria judge every S001 variant on its missing epochs and
+    its invalid epochs after convergence, so a DUT cannot pass by dropping or invalidating
+    the epochs it is unsure of (outages included)."""
+    case = load_case(paths.test_cases_dir() / "S001_bds_sins.toml")
+    guards = {c.metric: c for c in case.criteria if c.id.startswith("INTEGRITY-")}
+    missing, invalid = guards["output.missing_fraction"], guards["output.invalid_fraction"]
+    assert missing.variant is None and invalid.variant is None  # every variant
+    assert not missing.window.converged and not missing.window.gnss  # the whole run
+    assert invalid.window.converged and not invalid.window.gnss  # from convergence on, outages included
+    assert missing.limit.high <= 0.01 and invalid.limit.high == 0.0

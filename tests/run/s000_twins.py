@@ -9,10 +9,15 @@ of the file as it is shipped, so what runs is the shipped case, not a rewrite of
 
 from __future__ import annotations
 
+import json
+import os
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from bench.record.mcap_io import RecordingReader
 
@@ -87,3 +92,36 @@ def differences(a: np.ndarray, b: np.ndarray) -> str:
             lines.append(f"{name}: {bad.size} epochs differ, first at t = {a['t_ns'][bad[0]] / 1e9:.2f} s, "
                          f"at most {size}")
     return "; ".join(lines) or "identical"
+
+
+BENCH = [sys.executable, "-c", "import sys; from bench.cli import main; sys.exit(main())"]
+HANG_S = 900.0  # a hang guard of a whole shortened run (a loaded machine is slower, never failed)
+
+
+def bench_run(case: Path, out: Path, *args: str, ns: str | None = None) -> tuple[int, str, dict]:
+    """``bench run`` of ``case`` into ``out`` (in the network namespace ``ns``): exit code,
+    output, results; fails the test on a hang, a traceback or no results."""
+    cmd = [*(["ip", "netns", "exec", ns] if ns else []), *BENCH, "run", str(case), "-o", str(out), "-q",
+           "--no-plots", *args]
+    try:
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=HANG_S, cwd=case.parent,
+                           env={**os.environ, "COLUMNS": "200"})
+    except subprocess.TimeoutExpired as exc:
+        pytest.fail(f"bench run {case.name} did not end within {HANG_S:g} s (hangs?): {exc.stdout}")
+    text = p.stdout + p.stderr
+    assert "Traceback" not in text, text
+    assert (out / "results.json").is_file(), f"bench run {case.name} exited {p.returncode} without results:\n{text}"
+    return p.returncode, text, json.loads((out / "results.json").read_text())
+
+
+def recording(out: Path) -> Path:
+    """The one recording of a run's output folder."""
+    (rec,) = sorted((out / "recordings").glob("*/*.mcap"))
+    return rec
+
+
+def criteria(results: dict) -> dict[str, tuple[str, float | None]]:
+    """criterion id -> (verdict, value) of a one-case results record (negative controls,
+    which judge another variant, left out)."""
+    (case,) = results["cases"]
+    return {c["id"]: (c["verdict"], c["value"]) for c in case["criteria"] if not c.get("control")}

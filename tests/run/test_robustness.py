@@ -17,6 +17,7 @@ from __future__ import annotations
 import gc
 import json
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -224,6 +225,29 @@ class _Raises(Estimator):
         sol = np.zeros(1, NAV_SOLUTION_DTYPE)
         sol["t_ns"] = inputs.t_ns
         return EstimatorOutput(sol)
+
+
+class _Says(Estimator):
+    name = "says_at_close"
+
+    def step(self, inputs):
+        sol = np.zeros(1, NAV_SOLUTION_DTYPE)
+        sol["t_ns"] = inputs.t_ns
+        return EstimatorOutput(sol)
+
+    def close(self):
+        print("summary: 200 epochs")
+        print("diagnostics: {\"x\": 1}", file=sys.stderr)
+
+
+def test_what_an_in_process_estimator_writes_at_close_is_on_the_dut_log(tmp_path):
+    register_estimator("says_at_close", _Says)
+    res = run(_spec(tmp_path / "says.mcap", DutSpec("in_process", name="says_at_close")))
+    assert res.ok, res.reason
+    logs = [m for _, m in RecordingReader(res.path).iter_json("/dut/log")]
+    assert [(m["stream"], m["text"]) for m in logs] == [("stdout", "summary: 200 epochs"),
+                                                       ("stderr", 'diagnostics: {"x": 1}')]
+    assert logs[0]["t_ns"] == 2_000_000_000  # the last step's bench time
 
 
 class _BadConfig(Estimator):

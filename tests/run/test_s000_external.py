@@ -14,47 +14,28 @@ interface can be created the case runs on socketcan too and gives the same solut
 from __future__ import annotations
 
 import json
-import os
 import subprocess
-import sys
 import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from bench.record.mcap_io import RecordingReader
-from tests.run.s000_twins import EXTERNAL, IN_PROCESS, differences, nav, sensor_inputs, shortened
+from tests.run.s000_twins import (
+    EXTERNAL,
+    IN_PROCESS,
+    bench_run,
+    criteria,
+    differences,
+    nav,
+    recording,
+    sensor_inputs,
+    shortened,
+)
 
-BENCH = [sys.executable, "-c", "import sys; from bench.cli import main; sys.exit(main())"]
 SHORT_S = 700.0
 CONVERGED_S = 650.0
 EPOCHS = round(SHORT_S * 100) + 1  # 100 Hz from 0 s to the end, both included
-HANG_S = 900.0  # a hang guard of a whole shortened run (a loaded machine is slower, never failed)
-
-
-def _bench_run(case: Path, out: Path, *args: str, ns: str | None = None) -> tuple[int, str, dict]:
-    cmd = ([*(["ip", "netns", "exec", ns] if ns else []), *BENCH, "run", str(case), "-o", str(out), "-q",
-            "--no-plots", *args])
-    try:
-        p = subprocess.run(cmd, capture_output=True, text=True, timeout=HANG_S, cwd=case.parent,
-                           env={**os.environ, "COLUMNS": "200"})
-    except subprocess.TimeoutExpired as exc:
-        pytest.fail(f"bench run {case.name} did not end within {HANG_S:g} s (hangs?): {exc.stdout}")
-    text = p.stdout + p.stderr
-    assert "Traceback" not in text, text
-    assert (out / "results.json").is_file(), f"bench run {case.name} exited {p.returncode} without results:\n{text}"
-    return p.returncode, text, json.loads((out / "results.json").read_text())
-
-
-def _recording(out: Path) -> Path:
-    (rec,) = sorted((out / "recordings").glob("*/*.mcap"))
-    return rec
-
-
-def _criteria(results: dict) -> dict[str, tuple[str, float | None]]:
-    (case,) = results["cases"]
-    return {c["id"]: (c["verdict"], c["value"]) for c in case["criteria"]}
 
 
 @pytest.fixture(scope="module")
@@ -64,12 +45,12 @@ def runs(ns, tmp_path_factory):
     folder = tmp_path_factory.mktemp("s000ext")
     (folder / "ext").mkdir()
     ext_case = shortened(EXTERNAL, folder / "ext", duration_s=SHORT_S, convergence_s=CONVERGED_S)
-    code, text, res = _bench_run(ext_case, folder / "ext" / "out", ns=ns)
-    out = {"external": (code, text, res, _recording(folder / "ext" / "out"))}
+    code, text, res = bench_run(ext_case, folder / "ext" / "out", ns=ns)
+    out = {"external": (code, text, res, recording(folder / "ext" / "out"))}
     (folder / "in").mkdir()
     twin = shortened(IN_PROCESS, folder / "in", duration_s=SHORT_S, convergence_s=CONVERGED_S)
-    code, text, res = _bench_run(twin, folder / "in" / "out", "--variant", "attitude_position", "--seed", "1")
-    out["in_process"] = (code, text, res, _recording(folder / "in" / "out"))
+    code, text, res = bench_run(twin, folder / "in" / "out", "--variant", "attitude_position", "--seed", "1")
+    out["in_process"] = (code, text, res, recording(folder / "in" / "out"))
     return out
 
 
@@ -86,7 +67,7 @@ def test_s000_external_runs_end_to_end_over_pty_and_udp_multicast(runs):
     assert md["dut_output"]["bad_frames"] == "{}"
     sol = nav(rec)["/dut/nav_solution"]
     assert len(sol) == EPOCHS and np.all(np.diff(sol["t_ns"]) == 10_000_000)
-    verdicts = _criteria(results)
+    verdicts = criteria(results)
     assert len(verdicts) == 19, verdicts  # the case's 9 and the 10 integrity defaults
     for cid, (verdict, _) in verdicts.items():
         assert verdict in ("PASS", "MARGINAL", "FAIL"), (cid, verdict, text)  # judged on its data
@@ -111,7 +92,7 @@ def test_in_process_and_external_give_the_same_solution_epoch_for_epoch(runs):
     assert len(sol_a) == EPOCHS
     assert np.array_equal(sol_a, sol_b), differences(sol_a, sol_b)
     assert np.array_equal(a["/dut/nav_quality"], b["/dut/nav_quality"])
-    ours, theirs = _criteria(runs["external"][2]), _criteria(in_results)
+    ours, theirs = criteria(runs["external"][2]), criteria(in_results)
     assert ours == {cid: theirs[cid] for cid in ours}, in_text
 
 
@@ -150,9 +131,9 @@ def test_s000_external_on_vcan_gives_the_same_solution(ns, runs, tmp_path):
     assert up.returncode == 0, up.stderr
     case = shortened(EXTERNAL, tmp_path, duration_s=SHORT_S,
                      can='{ interface = "socketcan", channel = "vcan0", fd = true }')
-    code, text, _ = _bench_run(case, tmp_path / "out", ns=ns)
+    code, text, _ = bench_run(case, tmp_path / "out", ns=ns)
     assert code in (0, 1), text
-    rec = _recording(tmp_path / "out")
+    rec = recording(tmp_path / "out")
     assert RecordingReader(rec).metadata()["run_end"]["status"] == "complete"
     a, b = nav(runs["external"][3]), nav(rec)
     assert np.array_equal(a["/dut/nav_solution"], b["/dut/nav_solution"]), \
