@@ -262,6 +262,7 @@ _BUILTIN = {
     "dead_reckoning": "bench.estimators.basic:DeadReckoning",
     "seed000": "bench.estimators.seed000:Seed000",
     "seed001": "bench.estimators.seed001:Seed001",
+    "seed002": "bench.estimators.seed002:Seed002",
 }
 
 

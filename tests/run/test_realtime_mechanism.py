@@ -133,7 +133,7 @@ def _kernel_stamps() -> list[tuple[int, int, int, int, int, int]]:
         # after the first socket asks: until then a datagram is stamped when it is read.
         # Wait for it (a datagram stamped before it was read) before measuring.
         for i in range(200):
-            sent, got, before, stamp, after, read_at = one(1000 + i)
+            _, _, _, stamp, after, _ = one(1000 + i)
             if stamp <= after + _CLOCK_SLACK_NS:
                 break
         else:
