@@ -18,6 +18,14 @@ and the first word naming a sensor picks the bit). For each window ``[start, end
 **False alarms**: flag episodes (rising edges) on a sensor's bit that begin outside
 every fault window of that sensor (each extended by ``grace``), counted over the
 criterion's window; the rate is per time outside the fault windows.
+
+**Fault class** (odometer windows only, NAV_QUALITY byte 28 ``odo_fault_class``): the
+*declared* class of a sensor-layer odometer window follows from its kind
+(:data:`ODOMETER_FAULT_CLASSES`); odometer windows overlapping in time, directly or
+through others, form one event and are all declared the event's class
+(:func:`declared_classes`). The *reported* class is the most frequent nonzero
+``odo_fault_class`` among the epochs in ``[start, end + grace)`` at which the chosen flag
+of the odometer bit is set (ties: the class reported first), 0 if none.
 """
 
 from __future__ import annotations
@@ -35,11 +43,29 @@ from bench.scoring.align import NavErrors
 from bench.scoring.data import NoDataError
 from bench.scoring.windows import Window, intersect, union
 
-__all__ = ["SENSOR_BITS", "target_bit", "FaultSettings", "WindowOutcome", "FaultAnalysis", "analyse_faults", "FLAGS"]
+__all__ = [
+    "SENSOR_BITS",
+    "target_bit",
+    "FaultSettings",
+    "WindowOutcome",
+    "FaultAnalysis",
+    "analyse_faults",
+    "FLAGS",
+    "ODOMETER_BIT",
+    "ODOMETER_FAULT_CLASSES",
+    "declared_classes",
+    "reported_class",
+]
 
 #: NAV_QUALITY bit of each sensor name (ICD 2.2, bytes 26-27).
 SENSOR_BITS = {"odometer": 0, "odo": 0, "doppler": 1, "radar": 1, "bds": 2, "gnss": 2, "imu": 3}
 FLAGS = ("detected", "excluded", "either")
+ODOMETER_BIT = 0
+#: ICD odometer fault class (NAV_QUALITY byte 28; the values of ``bench.wire.icd``
+#: ``ODO_FAULT_*``, which scoring may not import) of each sensor-layer odometer fault kind:
+#: 1 longitudinal, 2 lateral, 3 vertical.
+ODOMETER_FAULT_CLASSES = {"idling": 1, "sliding": 1, "no_output": 1, "sideslip": 2, "bump": 3}
+_LONGITUDINAL, _LATERAL = 1, 2
 
 
 def target_bit(target: str) -> int | None:
@@ -77,6 +103,11 @@ class WindowOutcome:
     growth_m: float
     recovery_s: float
     residual_m: float
+    #: ICD odometer fault class the window's event declares, the DUT's reported one, and
+    #: whether they agree; None for windows without a class (not an odometer sensor fault).
+    declared_class: int | None = None
+    reported_class: int | None = None
+    class_ok: bool | None = None
 
     def to_json(self) -> dict[str, Any]:
         return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in self.__dict__.items()}
@@ -101,6 +132,15 @@ class FaultAnalysis:
             if self.clear_time_s <= 0.0:
                 raise NoDataError("no fault-free time in the window to count false alarms over")
             return len(self.false_alarms) / self.clear_time_s
+        if name in ("class_correct", "class_wrong"):
+            classed = [w for w in o if w.class_ok is not None]
+            if not classed:
+                raise NoDataError(
+                    "no odometer sensor fault window (idling, sliding, no_output, sideslip, bump) of the selected"
+                    " targets in the window: the fault class applies to odometer windows only"
+                )
+            right = sum(1 for w in classed if w.class_ok)
+            return right / len(classed) if name == "class_correct" else float(len(classed) - right)
         if not o:
             raise NoDataError("no recorded fault window of the selected targets in the window")
         det = [w for w in o if w.detected]
@@ -141,6 +181,62 @@ def _flag_bits(quality: np.ndarray, bit: int, flag: str) -> np.ndarray:
     return {"detected": det, "excluded": exc, "either": det | exc}[flag]
 
 
+def declared_classes(faults: Sequence[FaultWindow]) -> dict[FaultWindow, int]:
+    """Declared ICD odometer fault class of each classed window.
+
+    Classed windows are the sensor-layer windows on the odometer bit whose kind is in
+    :data:`ODOMETER_FAULT_CLASSES`. Those overlapping in time (``[start, end)``, directly
+    or through others) form one event, and every window of it is declared the event's
+    class: lateral (2) or vertical (3) over longitudinal (1); with both 2 and 3, the class
+    of the earliest-starting window of class 2 or 3, lateral on a tie.
+    """
+    odo = sorted(
+        (
+            w
+            for w in faults
+            if w.layer == "sensor" and target_bit(w.target) == ODOMETER_BIT and w.kind in ODOMETER_FAULT_CLASSES
+        ),
+        key=lambda w: (w.start_ns, w.end_ns, w.id),
+    )
+    groups: list[list[FaultWindow]] = []
+    group_end = 0
+    for w in odo:
+        if groups and w.start_ns < group_end:
+            groups[-1].append(w)
+            group_end = max(group_end, w.end_ns)
+        else:
+            groups.append([w])
+            group_end = w.end_ns
+    out: dict[FaultWindow, int] = {}
+    for g in groups:
+        cls = _event_class(g)
+        out.update((w, cls) for w in g)
+    return out
+
+
+def _event_class(group: Sequence[FaultWindow]) -> int:
+    """Class of one event (overlapping odometer windows): see :func:`declared_classes`."""
+    strong = [w for w in group if ODOMETER_FAULT_CLASSES[w.kind] != _LONGITUDINAL]
+    if not strong:
+        return _LONGITUDINAL
+    first = min(w.start_ns for w in strong)
+    at_first = {ODOMETER_FAULT_CLASSES[w.kind] for w in strong if w.start_ns == first}
+    return _LATERAL if _LATERAL in at_first else min(at_first)
+
+
+def reported_class(classes: np.ndarray) -> int:
+    """The class a DUT reported over a window: the most frequent nonzero value of
+    ``classes`` (the ``odo_fault_class`` of the flagged epochs, in time order), the one
+    reported first on a tie; 0 when there is none."""
+    c = np.asarray(classes)
+    nz = c[c != 0]
+    if len(nz) == 0:
+        return 0
+    values, first, counts = np.unique(nz, return_index=True, return_counts=True)
+    best = np.flatnonzero(counts == counts.max())
+    return int(values[best[np.argmin(first[best])]])
+
+
 def _episodes(t: np.ndarray, f: np.ndarray) -> np.ndarray:
     """Start times of runs of True in ``f``."""
     rising = f & ~np.concatenate([[False], f[:-1]])
@@ -175,6 +271,7 @@ def analyse_faults(
         and (not targets or w.target in targets or any(target_bit(t) == target_bit(w.target) for t in targets))
     ]
     bits = sorted({target_bit(t) for t in targets} - {None}) if targets else sorted({0, 1, 2, 3})
+    declared = declared_classes(faults)
     out = FaultAnalysis()
     if errors is not None:
         e_h = np.hypot(errors.pos[:, 0], errors.pos[:, 1])[errors.usable]
@@ -198,6 +295,8 @@ def analyse_faults(
         growth = recovery = residual = math.nan
         if len(t_e):
             growth, recovery, residual = _error_course(t_e, e_h, w, settings)
+        cls = declared.get(w)
+        reported = reported_class(q["odo_fault_class"][hits]) if cls is not None else None
         out.outcomes.append(
             WindowOutcome(
                 w.id,
@@ -212,6 +311,9 @@ def analyse_faults(
                 growth,
                 recovery,
                 residual,
+                cls,
+                reported,
+                None if cls is None else reported == cls,
             )
         )
     # false alarms, per sensor bit, over the criterion window

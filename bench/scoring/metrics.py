@@ -89,6 +89,8 @@ _FAULTS = {
     "growth_max": ("length", "m", "largest horizontal error growth during a fault window"),
     "recovery_max": ("time", "s", "longest time to return to the pre-fault error level"),
     "residual_max": ("length", "m", "largest error left after a fault window (at end + after)"),
+    "class_correct": ("dimensionless", "%", "fraction of odometer fault windows whose reported fault class is right"),
+    "class_wrong": ("count", "1", "odometer fault windows whose reported fault class is wrong (or missed)"),
 }
 _SWITCH_MEASURES = {
     "jump": "jump across the switch beyond the truth's change",
