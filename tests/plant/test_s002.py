@@ -50,12 +50,16 @@ def test_s002_drive_matches_the_seed(s002):
     assert np.all(k.vel_n[:, 2] < -0.3)  # downhill
     assert np.degrees(k.euler[:, 1]) == pytest.approx(-3.5, abs=0.05)
 
-    tw, k = _window(traj, 540, 550)  # turning in place to the right
+    tw, _ = _window(traj, 540, 550)  # right track locked through the window
     assert {traj.segments()[i].kind for i in traj.segment_at(tw)} == {"turning_in_place"}
+    # turning in place to the right: throttle from 540 s (the governor hunts for 3 s at this
+    # low set speed, the driven track jerking) to 549 s
+    tw, k = _window(traj, 543, 549)
     rate = k.euler_rate[:, 0]
     assert np.all(rate > 0.1)
     v = np.linalg.norm(k.vel_n[:, :2], axis=1)
-    assert v / rate == pytest.approx(np.hypot(2.55 / 2, 0.5), rel=0.02)  # B/2 ahead, skid arm L
+    steady = tw >= 548.0  # the skid has settled (it lags the yaw rate)
+    assert v[steady] / rate[steady] == pytest.approx(np.hypot(2.55 / 2, 0.5), rel=0.02)  # B/2 ahead, skid arm L
     # the odometer (drive shaft at 1:1) reads far more than the body moves: idling
     assert np.all(traj.wheel_speed(tw) > 1.5 * v)
 
