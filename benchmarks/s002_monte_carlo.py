@@ -13,7 +13,8 @@ variant of the case, and prints:
    final error over the two-layer estimator's on the same seed;
 3. pure inertial: through each fault window where the two-layer estimator excluded the
    odometer, the horizontal error growth beside the growth of the filter's own horizontal
-   sigma (the INS's own drift, not a fault's);
+   sigma, and the horizontal error at the window's end over the filter's horizontal sigma
+   there (the INS's own drift, not a fault's, is what the covariance says);
 4. the case's criteria judged over all the seeds (``bench score`` of these recordings
    against ``--case``), the negative controls among them.
 
@@ -95,6 +96,7 @@ def _one(path: Path) -> dict:
             "start": a, "end": b, "kinds": kinds, "declared": cls, "reported": rep,
             "latency": (tq[hit[0]] - a) if len(hit) else np.inf, "exclusion": float(np.mean(exc[inside])),
             "growth": float(np.max(h[win]) - h[i0]), "sigma_growth": float(sig_h[j1] - sig_h[j0]),
+            "sigma_end": float(sig_h[j1]), "error_end": float(h[min(np.searchsorted(te, b), len(h) - 1)]),
         })
     rising = det & ~np.r_[False, det[:-1]]
     protected = np.zeros(len(tq), bool)
@@ -153,11 +155,13 @@ def main() -> int:
               f"(median {np.median(fin):7.2f})  NEES in band {100 * min(nw):5.1f}-{100 * max(nw):5.1f} %  "
               f"ratio {min(ratio):6.2f}-{max(ratio):6.2f}")
     print("\n3. Pure inertial through the windows (two-layer): horizontal error growth against the growth of the "
-          "filter's own horizontal sigma, largest over the seeds")
+          "filter's own horizontal sigma, largest over the seeds; the error at the window's end over that sigma")
     for k, ev in enumerate(res[ref, 1]["events"]):
         evs = [res[ref, s]["events"][k] for s in seeds]
+        z = [x["error_end"] / max(x["sigma_end"], 1e-9) for x in evs]
         print(f"    {ev['start']:6.0f}-{ev['end']:<6.0f} error growth {max(x['growth'] for x in evs):6.2f} m   "
-              f"sigma growth {max(x['sigma_growth'] for x in evs):6.2f} m")
+              f"sigma growth {max(x['sigma_growth'] for x in evs):6.2f} m   error / sigma at the end "
+              f"{min(z):4.2f}-{max(z):4.2f} (within 2: {sum(v <= 2.0 for v in z)}/{n})")
     from bench.cli.score import score_files
     from bench.report.table import text_table
 
