@@ -36,6 +36,7 @@ from bench.dut import MODE_ALIGNING, NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE, DutI
 from bench.dut.estimator import CanView
 from bench.errors import ConfigError
 from bench.estimators import seed001_kernel as K  # noqa: N812 - the kernel layout constants
+from bench.estimators.outblocks import OutputBlocks
 from bench.estimators.rest_alignment import RestAlignment, core_covariance
 from bench.estimators.seed001_meas import DDT, DK, MK
 from bench.estimators.settings import period_ns, surveyed_position
@@ -93,7 +94,6 @@ _OTHER_KEYS = ("initial_position", "road_network")
 _EMPTY_I = np.zeros(0, np.int64)
 _EMPTY_F = np.zeros(0)
 _ODO_COLUMNS = ("rx_ns", "speed", "valid")
-_OUT_BLOCK = 4096  # output records allocated at once
 
 
 def _vector(config: Mapping[str, Any], key: str) -> np.ndarray:
@@ -124,9 +124,7 @@ class Seed001(Estimator):
         self._matcher: Any = None
         self._mm_sent: dict[int, tuple[float, float]] = {}
         self._mm_offset = (0.0, 0.0)
-        self._sol_block = np.zeros(0, NAV_SOLUTION_DTYPE)
-        self._qual_block = np.zeros(0, NAV_QUALITY_DTYPE)
-        self._out_at = 0
+        self._out = OutputBlocks()
 
     # -- configuration -------------------------------------------------------------------
     def configure(self, config: Mapping[str, Any]) -> None:
@@ -245,7 +243,7 @@ class Seed001(Estimator):
                 o_ok.astype(np.int64, copy=False)
         else:
             o_t, o_v, o_ok = _EMPTY_I, _EMPTY_F, _EMPTY_I
-        sol, qual = self._out_records(len(imu))
+        sol, qual = self._out.take(len(imu))
         k = K.run_step(self.st, self.P, self.prm, self.xm, self.hist, imu["dtheta"], imu["dvel"], imu["t_ns"],
                        o_t, o_v, o_ok, self._pending, sol, qual)
         self._pending = self._pending[int(self.st[K.S_CONSUMED]) :]
@@ -256,17 +254,6 @@ class Seed001(Estimator):
             self._map_match(sol)
         return EstimatorOutput(sol, qual)
 
-    def _out_records(self, n: int) -> tuple[np.ndarray, np.ndarray]:
-        """``n`` zeroed NAV_SOLUTION and NAV_QUALITY records for a step's epochs: the next
-        unused rows of two blocks allocated together (no two steps share a row; what a step
-        returns are views of its own rows, as zeroed as arrays of their own)."""
-        a = self._out_at
-        if a + n > len(self._sol_block):
-            m = max(n, _OUT_BLOCK)
-            self._sol_block, self._qual_block = np.zeros(m, NAV_SOLUTION_DTYPE), np.zeros(m, NAV_QUALITY_DTYPE)
-            a = 0
-        self._out_at = a + n
-        return self._sol_block[a : a + n], self._qual_block[a : a + n]
 
     def _take_fixes(self, inputs: DutInputs) -> None:
         g = inputs.gnss

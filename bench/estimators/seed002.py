@@ -40,6 +40,7 @@ from bench.config.table import check_keys
 from bench.dut import MODE_ALIGNING, NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE, DutInputs, Estimator, EstimatorOutput
 from bench.errors import ConfigError
 from bench.estimators import seed002_kernel as K  # noqa: N812 - the kernel layout constants
+from bench.estimators.outblocks import OutputBlocks
 from bench.estimators.rest_alignment import RestAlignment, core_covariance
 from bench.estimators.settings import period_ns, surveyed_position
 from bench.units import quantity
@@ -86,7 +87,6 @@ VECTOR_KEYS: dict[str, tuple[str, str, tuple[float, float, float]]] = {
 DETECTION = {"none": 0.0, "single_layer": 1.0, "two_layer": 2.0}
 _OTHER_KEYS = ("initial_position", "detection", "constraints", "log_diagnostics")
 _EMPTY_I = np.zeros(0, np.int64)
-_OUT_BLOCK = 4096
 
 
 def _vector(config: Mapping[str, Any], key: str) -> np.ndarray:
@@ -114,9 +114,7 @@ class Seed002(Estimator):
         self._rest = RestAlignment()
         self._out_ns = 10_000_000
         self._odo = np.zeros((0, 4), np.int64)  # samples waiting for the IMU: rx_ns, pulses, reverse, valid
-        self._sol_block = np.zeros(0, NAV_SOLUTION_DTYPE)
-        self._qual_block = np.zeros(0, NAV_QUALITY_DTYPE)
-        self._out_at = 0
+        self._out = OutputBlocks()
         self.st[K.S_PULSE] = -1.0
         self.st[K.S_LL] = self.st[K.S_LR] = -1.0
         self.st[K.S_PMODEL] = K.M_UNKNOWN
@@ -231,7 +229,7 @@ class Seed002(Estimator):
         if self._rest.coarse:
             return self._coarse_step(inputs, imu, d_t, d_l, d_r)
         o = np.ascontiguousarray(self._odo.T) if len(self._odo) else np.zeros((4, 0), np.int64)
-        sol, qual = self._out_records(len(imu))
+        sol, qual = self._out.take(len(imu))
         k = K.run_step(self.st, self.P, self.prm, imu["dtheta"], imu["dvel"], imu["t_ns"], o[0], o[1], o[2], o[3],
                        d_t, d_l, d_r, sol, qual)
         self._odo = self._odo[int(self.st[K.S_OCONS]) :]
@@ -239,15 +237,6 @@ class Seed002(Estimator):
             return EstimatorOutput()
         return EstimatorOutput(sol[:k], qual[:k])
 
-    def _out_records(self, n: int) -> tuple[np.ndarray, np.ndarray]:
-        """``n`` zeroed records: the next unused rows of two blocks allocated together."""
-        a = self._out_at
-        if a + n > len(self._sol_block):
-            m = max(n, _OUT_BLOCK)
-            self._sol_block, self._qual_block = np.zeros(m, NAV_SOLUTION_DTYPE), np.zeros(m, NAV_QUALITY_DTYPE)
-            a = 0
-        self._out_at = a + n
-        return self._sol_block[a : a + n], self._qual_block[a : a + n]
 
     def _coarse_step(self, inputs: DutInputs, imu: np.ndarray, d_t: np.ndarray, d_l: np.ndarray,
                      d_r: np.ndarray) -> EstimatorOutput:

@@ -23,7 +23,8 @@ from numba import njit
 
 from bench.dut import FAULT_ODOMETER, MODE_INERTIAL, MODE_ODOMETER
 from bench.estimators.ins_model import DV, N_CORE, PHI, discretize, ins_error_matrix
-from bench.estimators.kf import joseph_update, time_update
+from bench.estimators.kf import time_update
+from bench.estimators.seed002_meas import NOT_UPDATED, UPDATED_ALL, tested_update
 from bench.estimators.sins_core import core_feedback, quat_dcm, write_output, zupt_update
 from bench.nav.strapdown import _step
 
@@ -263,59 +264,19 @@ def _measure(st: np.ndarray, P: np.ndarray, prm: np.ndarray, t: float, back: flo
     R[1, 1] = rf * T * T + q * q / 6.0 + 1e-8  # two quantized counts
     R[2, 2] = prm[P_RN + 2] ** 2 * T * T + 1e-8
     x = np.zeros(n)
-    if det == 0.0:
-        joseph_update(x, P, z, H, R)
-        _feedback(st, x)
-        st[S_NUPD] += 1.0
-        st[S_FD], st[S_EX], st[S_CLS] = 0.0, 0.0, 0.0
-        st[S_LASTUPD] = t
-        return
-    S = H @ P @ H.T + R
-    lam = float(z @ np.linalg.solve(S, z))
+    done, cls, lam = tested_update(P, x, z, H, R, det, prm[P_G3], prm[P_G2])
     st[S_NIS] = lam
-    if lam <= prm[P_G3]:
-        joseph_update(x, P, z, H, R)
+    if done != NOT_UPDATED:
         _feedback(st, x)
+        st[S_LASTUPD] = t
+    if done == UPDATED_ALL:
         st[S_NUPD] += 1.0
         st[S_FD], st[S_EX], st[S_CLS] = 0.0, 0.0, 0.0
-        st[S_LASTUPD] = t
         return
     st[S_NL1] += 1.0
-    st[S_FD], st[S_EX] = 1.0, 1.0
-    # which component: the larger normalized residual of lateral (class 2), forward
-    # (class 1) and vertical (class 3)
-    a0 = abs(z[0]) / math.sqrt(S[0, 0])
-    a1 = abs(z[1]) / math.sqrt(S[1, 1])
-    a2 = abs(z[2]) / math.sqrt(S[2, 2])
-    if det == 2.0:
-        # second layer: the lateral and vertical rows only (J = rows 1 and 3 of H)
-        J = np.zeros((2, n))
-        zj = np.zeros(2)
-        Rj = np.zeros((2, 2))
-        for j in range(n):
-            J[0, j] = H[0, j]
-            J[1, j] = H[2, j]
-        zj[0], zj[1] = z[0], z[2]
-        Rj[0, 0], Rj[1, 1] = R[0, 0], R[2, 2]
-        Sj = J @ P @ J.T + Rj
-        lam2 = float(zj @ np.linalg.solve(Sj, zj))
-        if lam2 <= prm[P_G2]:
-            # the kinematic constraint alone assists the SINS: the odometer's travel excluded
-            joseph_update(x, P, zj, J, Rj)
-            _feedback(st, x)
-            st[S_CLS] = 1.0
-            st[S_LASTUPD] = t
-            return
+    if done == NOT_UPDATED and det == 2.0:
         st[S_NL2] += 1.0
-        st[S_CLS] = 2.0 if a0 >= a2 else 3.0
-        return
-    # single layer: classified by the largest component, pure inertial
-    if a1 >= a0 and a1 >= a2:
-        st[S_CLS] = 1.0
-    elif a0 >= a2:
-        st[S_CLS] = 2.0
-    else:
-        st[S_CLS] = 3.0
+    st[S_FD], st[S_EX], st[S_CLS] = 1.0, 1.0, float(cls)
 
 
 @njit(cache=True)
