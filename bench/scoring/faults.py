@@ -15,9 +15,11 @@ and the first word naming a sensor picks the bit). For each window ``[start, end
   it never is before the run ends; **residual** = error at ``end + after`` minus the
   pre-fault level.
 
-**False alarms**: flag episodes (rising edges) on a sensor's bit that begin outside
-every fault window of that sensor (each extended by ``grace``), counted over the
-criterion's window; the rate is per time outside the fault windows.
+**False alarms**: stretches of epochs, within the criterion's window and outside
+every fault window of that sensor (each extended by ``grace``), whose flag is set, one per
+stretch: a flag raised outside the windows, and a flag held on past a window's end plus
+``grace`` (latched) or already set where the criterion's window begins, each counts once;
+the rate is per time outside the fault windows.
 
 **Fault class** (odometer windows only, NAV_QUALITY byte 28 ``odo_fault_class``): the
 *declared* class of a sensor-layer odometer window follows from its kind
@@ -325,11 +327,10 @@ def analyse_faults(
         protected = np.zeros(len(tq), dtype=bool)
         for w in mine:
             protected |= (tq >= w.start_ns) & (tq < w.end_ns + settings.grace_ns)
-        starts = _episodes(tq, f)
-        start_idx = np.searchsorted(tq, starts)
-        for t0, i in zip(starts, start_idx, strict=True):
-            if in_crit[i] and not protected[i]:
-                out.false_alarms.append({"sensor_bit": bit, "t_s": int(t0) * 1e-9})
+        # a flag raised outside the windows, or held on out of one (or into the criterion
+        # window), counts from its first epoch outside: a latched flag is no detection
+        for t0 in _episodes(tq, f & in_crit & ~protected):
+            out.false_alarms.append({"sensor_bit": bit, "t_s": int(t0) * 1e-9})
     all_faults = np.array([[w.start_ns, w.end_ns + settings.grace_ns] for w in faults], dtype=np.int64).reshape(-1, 2)
     busy = intersect(clear, union(all_faults)) if len(all_faults) else np.zeros((0, 2), dtype=np.int64)
     total = float(np.sum(clear[:, 1] - clear[:, 0]))

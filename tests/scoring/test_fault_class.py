@@ -269,3 +269,36 @@ def test_class_metrics_from_a_recording(tmp_path):
     assert rows == {0: (1, 1, True), 1: (2, 2, True), 2: (2, 2, True), 3: (3, 0, False), 4: (None, None, None)}
     with pytest.raises(NoDataError, match="odometer"):
         s.metric("faults.class_correct", ALL, {"target": ("doppler",)})
+
+
+def _quality_flags(times_s, flagged):
+    from bench.topics import NAV_QUALITY_DTYPE
+
+    q = np.zeros(len(times_s), NAV_QUALITY_DTYPE)
+    q["t_ns"] = np.round(np.asarray(times_s) * 1e9).astype(np.int64)
+    q["fault_detected"] = np.where(flagged, 1, 0)
+    return q
+
+
+@pytest.mark.parametrize(
+    ("flag_from", "flag_to", "expected"),
+    [
+        (10.0, 12.0, 0),  # detected inside the window, dropped within the grace
+        (10.0, 30.0, 1),  # latched: held on long after the window and its grace
+        (0.0, 30.0, 2),  # set before the criterion window begins, held into it and past the fault
+        (20.0, 21.0, 1),  # raised outside every window
+    ],
+)
+def test_false_alarms_count_latched_and_inherited_flags(flag_from, flag_to, expected):
+    from bench.faults.schedule import FaultWindow
+    from bench.scoring.faults import FaultSettings, analyse_faults
+    from bench.scoring.windows import Window, WindowSpec
+
+    t = np.arange(0.0, 40.0, 0.1)
+    q = _quality_flags(t, (t >= flag_from) & (t < flag_to))
+    w = FaultWindow(id=0, layer="sensor", target="odometer", kind="idling", start_ns=10_000_000_000,
+                    end_ns=11_000_000_000)
+    crit = Window(WindowSpec(name="from 5 s", start_ns=5_000_000_000), np.array([[5_000_000_000, 40_000_000_000]]),
+                  40_000_000_000)
+    out = analyse_faults([w], q, None, crit, FaultSettings(grace_ns=1_000_000_000))
+    assert len(out.false_alarms) == expected, out.false_alarms
