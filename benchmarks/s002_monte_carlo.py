@@ -15,7 +15,11 @@ variant of the case, and prints:
    odometer, the horizontal error growth beside the growth of the filter's own horizontal
    sigma, and the horizontal error at the window's end over the filter's horizontal sigma
    there (the INS's own drift, not a fault's, is what the covariance says);
-4. the case's criteria judged over all the seeds (``bench score`` of these recordings
+5. consistency of the two-layer estimator on the fault-free epochs: the position NEES in
+   its band per run and pooled, the NEES averaged over the runs (ANEES) against the
+   chi-square band of N runs, position and heading, and the final heading error against
+   the filter's sigma on every seed;
+6. the case's criteria judged over all the seeds (``bench score`` of these recordings
    against ``--case``), the negative controls among them.
 
     .venv/bin/python benchmarks/s002_monte_carlo.py [--runs 10] [--from DIR] [--case FILE]
@@ -109,7 +113,50 @@ def _one(path: Path) -> dict:
         free &= ~((te >= a) & (te < b + 30.0))
     lo, hi = chi2_bounds(3, 0.95)
     out["nees_within"] = float(np.mean((nees[free] >= lo) & (nees[free] <= hi)))
+    # on a 1 s grid of the fault-free stretch, for the Monte Carlo averages (NaN: not usable)
+    grid = np.arange(DRIVE_OFF_S + 1.0, te[-1], 1.0)
+    k = np.clip(np.searchsorted(te, grid), 0, len(te) - 1)
+    ok = free[k]
+    has_h, nees_h = nees_series(e, q, "heading")
+    out["grid"] = grid
+    out["nees_grid"] = np.where(ok, nees[k], np.nan)
+    out["nees_h_grid"] = np.where(ok & has_h[k], nees_h[k], np.nan)
+    last = np.flatnonzero(free & has_h)[-1]
+    out["heading_end"] = (float(np.degrees(e.att[last, 0]) * 60.0), float(np.sqrt(nees_h[last])))
     return out
+
+
+def _consistency(res: dict, variant: str, seeds: range) -> None:
+    """Section 5: the filter's position and heading sigmas against its errors, per run and
+    over the Monte Carlo (the averaged NEES of N runs against its chi-square band with N
+    times the degrees of freedom: Bar-Shalom, Li, Kirubarajan, Estimation with Applications
+    to Tracking and Navigation, 5.4)."""
+    from scipy.stats import chi2
+
+    n = len(seeds)
+    lo, hi = chi2_bounds(3, 0.95)
+    m = min(len(res[variant, s]["grid"]) for s in seeds)
+    pos = np.array([res[variant, s]["nees_grid"][:m] for s in seeds])
+    hdg = np.array([res[variant, s]["nees_h_grid"][:m] for s in seeds])
+    every = np.all(np.isfinite(pos), axis=0) & np.all(np.isfinite(hdg), axis=0)
+    pooled = pos[:, every]
+    print(f"\n5. Consistency of {variant}, fault-free epochs (windows + 30 s left out) after the drive-off, 1 s grid")
+    within = (pooled >= lo) & (pooled <= hi)
+    print(f"    position NEES in its 95 % band [{lo:.2f}, {hi:.2f}]: {100 * within.mean():5.1f} % of the "
+          f"{within.size} epochs of all {n} runs; per run {100 * within.mean(axis=1).min():5.1f}-"
+          f"{100 * within.mean(axis=1).max():5.1f} %, {int(np.sum(within.mean(axis=1) >= 0.9))}/{n} runs >= 90 %")
+    for name, arr, dof in (("position", pos[:, every], 3), ("heading", hdg[:, every], 1)):
+        a = arr.mean(axis=0)
+        alo, ahi = chi2.ppf(0.025, n * dof) / n, chi2.ppf(0.975, n * dof) / n
+        print(f"    {name} NEES averaged over the {n} runs (ANEES) in [{alo:.2f}, {ahi:.2f}]: "
+              f"{100 * np.mean((a >= alo) & (a <= ahi)):5.1f} % of epochs, above {100 * np.mean(a > ahi):4.1f} %, "
+              f"mean {a.mean():.2f} (expected {dof})")
+    ends = [res[variant, s]["heading_end"] for s in seeds]
+    q = sum(z * z for _, z in ends)
+    print("    heading error at the last fault-free epoch, arcmin (error / sigma): "
+          + ", ".join(f"{h:+.1f} ({z:.1f})" for h, z in ends))
+    print(f"    sum of (error / sigma)^2 over the runs {q:.1f}; chi-square {n} dof, 95 % upper bound "
+          f"{chi2.ppf(0.95, n):.1f}")
 
 
 def main() -> int:
@@ -162,12 +209,13 @@ def main() -> int:
         print(f"    {ev['start']:6.0f}-{ev['end']:<6.0f} error growth {max(x['growth'] for x in evs):6.2f} m   "
               f"sigma growth {max(x['sigma_growth'] for x in evs):6.2f} m   error / sigma at the end "
               f"{min(z):4.2f}-{max(z):4.2f} (within 2: {sum(v <= 2.0 for v in z)}/{n})")
+    _consistency(res, ref, seeds)
     from bench.cli.score import score_files
     from bench.report.table import text_table
 
     paths = [src / "recordings" / cid / f"{cid}-{v}-s{s}.mcap" for v in variants for s in seeds]
     (judged,) = score_files(paths, args.case)
-    print(f"\n4. The case's criteria judged over the {n} seeds (bench score of these recordings; negative")
+    print(f"\n6. The case's criteria judged over the {n} seeds (bench score of these recordings; negative")
     print("   controls: the variant's row says (control), PASS when the limit failed it as it must)")
     table = text_table([judged], width=48).splitlines()
     print("\n".join(line for line in table if "INTEGRITY-" not in line and "OUT-LATENCY" not in line))

@@ -38,6 +38,7 @@ import numpy as np
 
 from bench.config.table import check_keys
 from bench.dut import MODE_ALIGNING, NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE, DutInputs, Estimator, EstimatorOutput
+from bench.dut.estimator import CanView
 from bench.errors import ConfigError
 from bench.estimators import seed002_kernel as K  # noqa: N812 - the kernel layout constants
 from bench.estimators.outblocks import OutputBlocks
@@ -87,6 +88,22 @@ VECTOR_KEYS: dict[str, tuple[str, str, tuple[float, float, float]]] = {
 DETECTION = {"none": 0.0, "single_layer": 1.0, "two_layer": 2.0}
 _OTHER_KEYS = ("initial_position", "detection", "constraints", "log_diagnostics")
 _EMPTY_I = np.zeros(0, np.int64)
+_NO_ODO = [_EMPTY_I, _EMPTY_I, _EMPTY_I, _EMPTY_I]
+_ODO_COLUMNS = ("rx_ns", "pulse_count", "reverse", "valid")
+_DRV_COLUMNS = ("rx_ns", "left_lever", "right_lever")
+
+
+def _int_columns(can: Mapping[str, Any], name: str, keys: tuple[str, ...]) -> list[np.ndarray] | None:
+    """The columns ``keys`` of CAN message ``name`` in this step as int64 arrays; None when
+    none arrived. The bench's :class:`CanView` gives them as they are (the decoder's columns
+    are int64, contiguous) without building the message's dict: a step's hot path."""
+    if type(can) is CanView:
+        cols = can.columns(name, keys)
+        return cols if cols is not None and len(cols[0]) else None
+    msg = can.get(name)
+    if msg is None or not len(msg[keys[0]]):
+        return None
+    return [np.ascontiguousarray(msg[k], dtype=np.int64) for k in keys]
 
 
 def _vector(config: Mapping[str, Any], key: str) -> np.ndarray:
@@ -113,7 +130,7 @@ class Seed002(Estimator):
         self.prm = np.zeros(K.PRM_SIZE)
         self._rest = RestAlignment()
         self._out_ns = 10_000_000
-        self._odo = np.zeros((0, 4), np.int64)  # samples waiting for the IMU: rx_ns, pulses, reverse, valid
+        self._odo = _NO_ODO  # samples waiting for the IMU: rx_ns, pulses, reverse, valid (int64 columns)
         self._out = OutputBlocks()
         self.st[K.S_PULSE] = -1.0
         self.st[K.S_LL] = self.st[K.S_LR] = -1.0
@@ -215,24 +232,22 @@ class Seed002(Estimator):
         if self.position is None:
             raise ConfigError("the seed002 estimator needs dut.config.initial_position", key="dut.config")
         can = inputs.can
-        odo = can.get("ODOMETER")
-        if odo is not None and len(odo["rx_ns"]):
-            rows = np.column_stack([np.asarray(odo[k], dtype=np.int64) for k in
-                                    ("rx_ns", "pulse_count", "reverse", "valid")])
-            self._odo = rows if not len(self._odo) else np.vstack([self._odo, rows])
-        drv = can.get("DRIVER_INPUT")
-        if drv is not None and len(drv["rx_ns"]):
-            d_t, d_l, d_r = (np.asarray(drv[k], dtype=np.int64) for k in ("rx_ns", "left_lever", "right_lever"))
-        else:
-            d_t = d_l = d_r = _EMPTY_I
+        new = _int_columns(can, "ODOMETER", _ODO_COLUMNS)
+        if new is not None:
+            old = self._odo
+            self._odo = new if not len(old[0]) else [np.concatenate(ab) for ab in zip(old, new, strict=True)]
+        drv = _int_columns(can, "DRIVER_INPUT", _DRV_COLUMNS)
+        d_t, d_l, d_r = drv if drv is not None else (_EMPTY_I, _EMPTY_I, _EMPTY_I)
         imu = inputs.imu
         if self._rest.coarse:
             return self._coarse_step(inputs, imu, d_t, d_l, d_r)
-        o = np.ascontiguousarray(self._odo.T) if len(self._odo) else np.zeros((4, 0), np.int64)
+        o_t, o_p, o_r, o_ok = self._odo
         sol, qual = self._out.take(len(imu))
-        k = K.run_step(self.st, self.P, self.prm, imu["dtheta"], imu["dvel"], imu["t_ns"], o[0], o[1], o[2], o[3],
+        k = K.run_step(self.st, self.P, self.prm, imu["dtheta"], imu["dvel"], imu["t_ns"], o_t, o_p, o_r, o_ok,
                        d_t, d_l, d_r, sol, qual)
-        self._odo = self._odo[int(self.st[K.S_OCONS]) :]
+        used = int(self.st[K.S_OCONS])
+        if used:
+            self._odo = [o_t[used:], o_p[used:], o_r[used:], o_ok[used:]]
         if k == 0:
             return EstimatorOutput()
         return EstimatorOutput(sol[:k], qual[:k])
@@ -246,10 +261,10 @@ class Seed002(Estimator):
         for t, left, right in zip(d_t.tolist(), d_l.tolist(), d_r.tolist(), strict=True):
             if left != st[K.S_LL] or right != st[K.S_LR]:
                 st[K.S_LL], st[K.S_LR], st[K.S_LT] = left, right, t
-        if len(self._odo):
-            st[K.S_PULSE] = float(self._odo[-1, 1])
-            st[K.S_OT] = float(self._odo[-1, 0])
-            self._odo = self._odo[:0]
+        if len(self._odo[0]):
+            st[K.S_PULSE] = float(self._odo[1][-1])
+            st[K.S_OT] = float(self._odo[0][-1])
+            self._odo = _NO_ODO
         self._rest.add(imu)
         out = self._rest.epochs(inputs.t_ns, self._out_ns, self.position, self.cfg["position_sigma"])
         if self._rest.done(self.cfg["coarse_alignment"]):

@@ -4,9 +4,9 @@
 :func:`validate` runs fmpy's schema, naming and model-structure checks;
 :class:`FmuInstance` loads the binary of a co-simulation FMU (FMI 2.0 or 3.0), holds one
 instance for a whole run and steps it at a fixed communication step. Its hot loop calls
-the FMU's ``DoStep`` and bulk ``GetReal``/``GetFloat64`` through the ctypes functions
-fmpy has bound, with the output pointer aimed straight at rows of a numpy buffer, so a
-step costs two foreign calls and no Python object per variable.
+the FMU's ``DoStep`` and bulk ``GetReal``/``GetFloat64`` from compiled code
+(:mod:`bench.plant.fmistep`) through the addresses of the functions fmpy has loaded, the
+outputs written straight into rows of a numpy buffer: no Python per step.
 
 Native code is loaded only from bytes whose SHA-256 is trusted (:mod:`bench.plant.manifest`):
 :class:`FmuInstance` and :func:`simulate` take the :class:`~bench.plant.manifest.FmuTrust`
@@ -188,8 +188,10 @@ class FmuInstance:
         self._dir: str | None = None
         self._fmu: Any = None
         self._state = "closed"
-        self._rows: list[Any] = []
         self._buffer: np.ndarray | None = None
+        self._vr_array: np.ndarray | None = None
+        self._flags = np.zeros(3, np.uint8)
+        self._addr: tuple[int, int, int] | None = None
 
     # -- life cycle --------------------------------------------------------------------
     def open(self, start_time: float = 0.0) -> FmuInstance:
@@ -274,8 +276,8 @@ class FmuInstance:
             with contextlib.suppress(Exception):
                 fmu.freeInstance()
         self._state = "closed"
-        self._rows = []
         self._buffer = None
+        self._addr = None
         if self._dir is not None:
             shutil.rmtree(self._dir, ignore_errors=True)
             self._dir = None
@@ -334,40 +336,55 @@ class FmuInstance:
         if buffer.dtype != np.float64 or not buffer.flags.c_contiguous or buffer.shape[1] != len(names):
             raise ValueError("buffer must be C-contiguous float64 of shape (rows, len(names))")
         vrs = [self._real(n).vr for n in names]
-        self._vr = (ctypes.c_uint * len(vrs))(*vrs)
-        self._nvr = len(vrs)
-        row_t = ctypes.c_double * len(vrs)
-        base, stride = buffer.ctypes.data, buffer.strides[0]
-        self._rows = [row_t.from_address(base + i * stride) for i in range(buffer.shape[0])]
-        self._buffer = buffer  # keeps the memory alive while the row views exist
+        self._vr_array = np.asarray(vrs, dtype=np.uint32)
+        self._buffer = buffer
 
     def advance(self, step0: int, n: int, h: float, row0: int = 0) -> None:
         """Run ``n`` steps of ``h`` seconds from communication point ``step0 * h``,
         writing the bound outputs after step k into row ``row0 + k`` of the buffer.
 
-        Raises :class:`PlantError` with the FMU's own messages when a step fails.
+        The steps run in compiled code (:mod:`bench.plant.fmistep`) through the addresses of
+        the FMU's own functions. Raises :class:`PlantError` with the FMU's own messages when
+        a step fails.
         """
         if self._state != "step":
             raise PlantError(f"{self.desc.path.name}: not in step mode (state {self._state})")
-        fmu, comp, vr, nvr, rows = self._fmu, self._fmu.component, self._vr, self._nvr, self._rows
+        if n <= 0:
+            return
+        rows = 0 if self._buffer is None else self._buffer.shape[0]
+        if row0 < 0 or row0 + n > rows:
+            raise ValueError(f"rows {row0}..{row0 + n - 1} are outside the bound buffer of {rows} rows")
+        from bench.plant import fmistep
+
+        fn = self._compiled()
+        assert self._buffer is not None and self._vr_array is not None
         if self.desc.fmi_version == "3.0":
-            do_step, get = fmu.dll.fmi3DoStep, fmu.dll.fmi3GetFloat64
-            ev, term, early, last = ctypes.c_bool(), ctypes.c_bool(), ctypes.c_bool(), ctypes.c_double()
-            pev, pterm, pearly, plast = ctypes.byref(ev), ctypes.byref(term), ctypes.byref(early), ctypes.byref(last)
-            for k in range(n):
-                status = do_step(comp, (step0 + k) * h, h, True, pev, pterm, pearly, plast)
-                if status > 1 or term.value or early.value:
-                    self._step_failed(status, (step0 + k) * h, bool(term.value), bool(early.value))
-                if get(comp, vr, nvr, rows[row0 + k], nvr) > 1:
-                    raise PlantError(self._fail_message(f"fmi3GetFloat64 failed at t = {(step0 + k + 1) * h:.6f} s"))
+            done, status, what = fmistep.advance3(fn[0], fn[1], fn[2], step0, n, h, self._vr_array, self._buffer, row0,
+                                                  self._flags)
+            term, early = bool(self._flags[1]), bool(self._flags[2])
+            get_name = "fmi3GetFloat64"
         else:
-            do_step, get = fmu.dll.fmi2DoStep, fmu.dll.fmi2GetReal
-            for k in range(n):
-                status = do_step(comp, (step0 + k) * h, h, 1)
-                if status > 1:
-                    self._step_failed(status, (step0 + k) * h, False, False)
-                if get(comp, vr, nvr, rows[row0 + k]) > 1:
-                    raise PlantError(self._fail_message(f"fmi2GetReal failed at t = {(step0 + k + 1) * h:.6f} s"))
+            done, status, what = fmistep.advance2(fn[0], fn[1], fn[2], step0, n, h, self._vr_array, self._buffer, row0)
+            term = early = False
+            get_name = "fmi2GetReal"
+        if done == n:
+            return
+        if what == 0:
+            self._step_failed(status, (step0 + done) * h, term, early)
+        raise PlantError(self._fail_message(f"{get_name} failed at t = {(step0 + done + 1) * h:.6f} s"))
+
+    def _compiled(self) -> tuple[int, int, int]:
+        """The addresses of DoStep, the bulk Float64/Real getter and the instance."""
+        if self._addr is None:
+            dll = self._fmu.dll
+            v3 = self.desc.fmi_version == "3.0"
+            do_step = dll.fmi3DoStep if v3 else dll.fmi2DoStep
+            get = dll.fmi3GetFloat64 if v3 else dll.fmi2GetReal
+            comp = self._fmu.component
+            comp = comp if isinstance(comp, int) else ctypes.cast(comp, ctypes.c_void_p).value
+            addr = ctypes.cast(do_step, ctypes.c_void_p).value, ctypes.cast(get, ctypes.c_void_p).value
+            self._addr = (addr[0] or 0, addr[1] or 0, comp or 0)
+        return self._addr
 
     def _step_failed(self, status: int, t: float, terminate: bool, early: bool) -> None:
         self._state = "failed"

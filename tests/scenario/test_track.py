@@ -119,3 +119,21 @@ gnss = "urban"
     traj = sc.trajectory()
     assert traj.duration_s == pytest.approx(190.0, abs=0.5)
     assert traj.segments()[0].gnss == "urban"
+
+
+def test_the_three_splines_evaluated_as_one_give_the_scalar_splines_bits():
+    """_Triple: one vector B-spline where the knots agree (interpolation), the scalar
+    splines where they do not (smoothing fits choose their own knots); the values the same
+    to the bit either way."""
+    from bench.scenario.track import _fit, _Triple
+
+    rng = np.random.default_rng(7)
+    t = np.cumsum(rng.uniform(0.005, 0.015, 400))
+    y = np.cumsum(rng.standard_normal((400, 3)), axis=0)
+    tq = np.sort(rng.uniform(t[0], t[-1], 5000))
+    for sigma, shared in ((0.0, True), (0.3, False)):
+        splines = [_fit(t, y[:, i], sigma) for i in range(3)]
+        for group in (splines, [s.derivative(1) for s in splines], [s.derivative(2) for s in splines]):
+            triple = _Triple(group)
+            assert (triple._one is not None) == shared
+            assert np.array_equal(triple(tq), np.stack([s(tq) for s in group], axis=-1))
