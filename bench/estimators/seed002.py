@@ -89,17 +89,15 @@ DETECTION = {"none": 0.0, "single_layer": 1.0, "two_layer": 2.0}
 _OTHER_KEYS = ("initial_position", "detection", "constraints", "log_diagnostics")
 _EMPTY_I = np.zeros(0, np.int64)
 _NO_ODO = [_EMPTY_I, _EMPTY_I, _EMPTY_I, _EMPTY_I]
+_NO_DRV = [_EMPTY_I, _EMPTY_I, _EMPTY_I]
 _ODO_COLUMNS = ("rx_ns", "pulse_count", "reverse", "valid")
 _DRV_COLUMNS = ("rx_ns", "left_lever", "right_lever")
 
 
 def _int_columns(can: Mapping[str, Any], name: str, keys: tuple[str, ...]) -> list[np.ndarray] | None:
-    """The columns ``keys`` of CAN message ``name`` in this step as int64 arrays; None when
-    none arrived. The bench's :class:`CanView` gives them as they are (the decoder's columns
-    are int64, contiguous) without building the message's dict: a step's hot path."""
-    if type(can) is CanView:
-        cols = can.columns(name, keys)
-        return cols if cols is not None and len(cols[0]) else None
+    """The columns ``keys`` of CAN message ``name`` in this step as contiguous int64 arrays
+    (the bench's decoder gives them so: :meth:`Seed002.step` takes them from its
+    :class:`CanView` as they are); None when none arrived."""
     msg = can.get(name)
     if msg is None or not len(msg[keys[0]]):
         return None
@@ -232,22 +230,30 @@ class Seed002(Estimator):
         if self.position is None:
             raise ConfigError("the seed002 estimator needs dut.config.initial_position", key="dut.config")
         can = inputs.can
-        new = _int_columns(can, "ODOMETER", _ODO_COLUMNS)
+        if type(can) is CanView:  # the bench's: the columns as they are, without the message's dict
+            new = can.columns("ODOMETER", _ODO_COLUMNS)
+            drv = can.columns("DRIVER_INPUT", _DRV_COLUMNS)
+            if new is not None and not len(new[0]):
+                new = None
+            if drv is None or not len(drv[0]):
+                drv = _NO_DRV
+        else:
+            new = _int_columns(can, "ODOMETER", _ODO_COLUMNS)
+            drv = _int_columns(can, "DRIVER_INPUT", _DRV_COLUMNS) or _NO_DRV
         if new is not None:
             old = self._odo
             self._odo = new if not len(old[0]) else [np.concatenate(ab) for ab in zip(old, new, strict=True)]
-        drv = _int_columns(can, "DRIVER_INPUT", _DRV_COLUMNS)
-        d_t, d_l, d_r = drv if drv is not None else (_EMPTY_I, _EMPTY_I, _EMPTY_I)
+        d_t, d_l, d_r = drv
         imu = inputs.imu
         if self._rest.coarse:
             return self._coarse_step(inputs, imu, d_t, d_l, d_r)
-        o_t, o_p, o_r, o_ok = self._odo
+        o_t, o_p, o_r, o_ok = odo = self._odo
         sol, qual = self._out.take(len(imu))
         k = K.run_step(self.st, self.P, self.prm, imu["dtheta"], imu["dvel"], imu["t_ns"], o_t, o_p, o_r, o_ok,
                        d_t, d_l, d_r, sol, qual)
         used = int(self.st[K.S_OCONS])
         if used:
-            self._odo = [o_t[used:], o_p[used:], o_r[used:], o_ok[used:]]
+            self._odo = _NO_ODO if used == len(o_t) else [c[used:] for c in odo]
         if k == 0:
             return EstimatorOutput()
         return EstimatorOutput(sol[:k], qual[:k])

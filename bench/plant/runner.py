@@ -89,7 +89,9 @@ def _step_index(t: float, h: float, what: str) -> int:
 
 
 def _events(setup: PlantSetup, names: list[str]) -> dict[int, dict[str, float]]:
-    """Step index -> FMU variable values to set before that step."""
+    """Step index -> FMU variable values to set before that step. A value equal to the one
+    the variable already holds is left out (the script ticks at the command rate, most of
+    its values unchanged): inputs of a co-simulation FMU hold their values."""
     m, h = setup.mapping, setup.step_s
     events: dict[int, dict[str, float]] = {}
     ticks, vals = setup.script.ticks(names)
@@ -104,7 +106,14 @@ def _events(setup: PlantSetup, names: list[str]) -> dict[int, dict[str, float]]:
                                   f"known: {', '.join(sorted(setup.surfaces))}")
             continue
         events.setdefault(_step_index(t, h, "a surface change"), {}).update(setup.surfaces[surface])
-    return events
+    held: dict[str, float] = {}
+    changes: dict[int, dict[str, float]] = {}
+    for k in sorted(events):
+        new = {var: v for var, v in events[k].items() if k == 0 or held.get(var) != v}
+        held.update(new)
+        if new:
+            changes[k] = new
+    return changes
 
 
 def run_plant(
