@@ -176,6 +176,12 @@ class RecordingWriter:
         for t, obj in zip(t_ns, objs, strict=True):
             self.write_json(topic, int(t), obj)
 
+    def write_encoded_many(self, topic: str, t_ns: np.ndarray, payloads: list[bytes]) -> None:
+        """Write many messages already encoded in the topic's encoding (one per time)."""
+        epoch = self.epoch_ns
+        for t, data in zip(np.asarray(t_ns, dtype=np.int64).tolist(), payloads, strict=True):
+            self._add(topic, epoch + t, data)
+
     def attach(self, name: str, data: bytes, media_type: str = "text/plain") -> None:
         """Attach a file (test case, motion script, parameter set, DBC...)."""
         if self.failed:

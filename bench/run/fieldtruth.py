@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.errors import ConfigError
-from bench.record.foxglove import LOCATION_FIX, location_fixes
+from bench.record.foxglove import LOCATION_FIX, location_fix_json
 from bench.record.mcap_io import RecordingWriter
 from bench.run.source import SEGMENTS_TOPIC, time_grid
 from bench.scenario.records import TRUTH_TOPIC, truth_records
@@ -155,7 +155,7 @@ class TruthWriter:
         t = self._covered(time_grid(self.display_rate_hz, t0_ns, t1_ns, include_start=first))
         if len(t):
             k = self.traj.kinematics((t - self.zero_ns) * 1e-9)
-            rec.write_json_many("/truth/location", t, location_fixes(self.epoch_ns, t, k.lat, k.lon, k.h))
+            rec.write_encoded_many("/truth/location", t, location_fix_json(self.epoch_ns, t, k.lat, k.lon, k.h))
 
     def counts(self) -> dict[str, int]:
         """Records written."""

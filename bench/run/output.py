@@ -13,7 +13,7 @@ import numpy as np
 
 from bench.dut.process import LogLine
 from bench.frames import CanBatch
-from bench.record.foxglove import LOCATION_FIX, location_fixes
+from bench.record.foxglove import LOCATION_FIX, location_fix_json
 from bench.record.mcap_io import RecordingWriter
 from bench.record.wire_topics import CAN_RX, write_can
 from bench.topics import NAV_QUALITY_TOPIC, NAV_SOLUTION_TOPIC, TopicSpec
@@ -143,10 +143,10 @@ class DutOutputRecorder:
         first = pick[np.concatenate([[True], np.diff(slot) > 0])]
         self._next_display = int((t[first[-1]] // self.display_period_ns + 1) * self.display_period_ns)
         s = sol[first]
-        self.rec.write_json_many(
+        self.rec.write_encoded_many(
             LOCATION_TOPIC,
             s["t_ns"],
-            location_fixes(self.rec.epoch_ns, s["t_ns"], s["lat"], s["lon"], s["h"], frame_id="dut"),
+            location_fix_json(self.rec.epoch_ns, s["t_ns"], s["lat"], s["lon"], s["h"], frame_id="dut"),
         )
 
     def log(self, lines: list[LogLine], t_ns: int) -> None:

@@ -24,7 +24,7 @@ from bench.errors import ConfigError
 from bench.faults.motion import with_motion_faults
 from bench.faults.schedule import FAULT_JSON_SCHEMA, FAULT_TOPIC, FaultSchedule
 from bench.nav import earth
-from bench.record.foxglove import LOCATION_FIX, POSE_IN_FRAME, location_fixes, poses_in_frame
+from bench.record.foxglove import LOCATION_FIX, POSE_IN_FRAME, location_fix_json, pose_json
 from bench.record.mcap_io import RecordingWriter
 from bench.scenario.loader import Scenario
 from bench.scenario.records import TRUTH_TOPIC, truth_records
@@ -238,8 +238,8 @@ class RunSource:
             td = truth_at(traj, t_disp)
             enu = earth.ecef_to_enu(earth.geodetic_to_ecef(td.lat, td.lon, td.h), *self._origin)
             epoch = rec.epoch_ns
-            rec.write_json_many("/truth/location", t_disp, location_fixes(epoch, t_disp, td.lat, td.lon, td.h))
-            rec.write_json_many("/truth/pose", t_disp, poses_in_frame(epoch, t_disp, enu, td.q_bn))
+            rec.write_encoded_many("/truth/location", t_disp, location_fix_json(epoch, t_disp, td.lat, td.lon, td.h))
+            rec.write_encoded_many("/truth/pose", t_disp, pose_json(epoch, t_disp, enu, td.q_bn))
         out: dict[str, np.ndarray] = {}
         for m in self.models:
             for topic, records in m.run(traj, t0_ns, t1_ns).items():
