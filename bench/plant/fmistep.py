@@ -57,21 +57,6 @@ def _do_step3(typingctx, fn, comp, t, h, flags):  # type: ignore[no-untyped-def]
 
 
 @intrinsic
-def _get3(typingctx, fn, comp, vr, nvr, out):  # type: ignore[no-untyped-def]
-    """``fmi3GetFloat64(comp, vr, nvr, out, nvr)``."""
-    sig = types.int32(types.uintp, types.uintp, types.uintp, types.uintp, types.uintp)
-
-    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
-        a_fn, a_comp, a_vr, a_n, a_out = args
-        fnty = ir.FunctionType(_I32, [_I8P, _I8P, _SIZE, _I8P, _SIZE])
-        f = _fnptr(builder, a_fn, fnty)
-        return builder.call(f, [builder.inttoptr(a_comp, _I8P), builder.inttoptr(a_vr, _I8P), a_n,
-                                builder.inttoptr(a_out, _I8P), a_n])
-
-    return sig, codegen
-
-
-@intrinsic
 def _do_step2(typingctx, fn, comp, t, h):  # type: ignore[no-untyped-def]
     """``fmi2DoStep(comp, t, h, fmi2True)``."""
     sig = types.int32(types.uintp, types.uintp, types.float64, types.float64)
@@ -85,19 +70,29 @@ def _do_step2(typingctx, fn, comp, t, h):  # type: ignore[no-untyped-def]
     return sig, codegen
 
 
-@intrinsic
-def _get2(typingctx, fn, comp, vr, nvr, out):  # type: ignore[no-untyped-def]
-    """``fmi2GetReal(comp, vr, nvr, out)``."""
-    sig = types.int32(types.uintp, types.uintp, types.uintp, types.uintp, types.uintp)
+def _getter(with_count: bool):  # type: ignore[no-untyped-def]
+    """The bulk Float64/Real getter: ``fmi3GetFloat64(comp, vr, nvr, out, nvr)``
+    (``with_count``: FMI 3.0 passes the number of values too) or ``fmi2GetReal(comp, vr,
+    nvr, out)``."""
 
-    def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
-        a_fn, a_comp, a_vr, a_n, a_out = args
-        fnty = ir.FunctionType(_I32, [_I8P, _I8P, _SIZE, _I8P])
-        f = _fnptr(builder, a_fn, fnty)
-        return builder.call(f, [builder.inttoptr(a_comp, _I8P), builder.inttoptr(a_vr, _I8P), a_n,
-                                builder.inttoptr(a_out, _I8P)])
+    @intrinsic
+    def get(typingctx, fn, comp, vr, nvr, out):  # type: ignore[no-untyped-def]
+        sig = types.int32(types.uintp, types.uintp, types.uintp, types.uintp, types.uintp)
 
-    return sig, codegen
+        def codegen(context, builder, signature, args):  # type: ignore[no-untyped-def]
+            a_fn, a_comp, a_vr, a_n, a_out = args
+            params = [_I8P, _I8P, _SIZE, _I8P] + ([_SIZE] if with_count else [])
+            f = _fnptr(builder, a_fn, ir.FunctionType(_I32, params))
+            ptr = [builder.inttoptr(v, _I8P) for v in (a_comp, a_vr, a_out)]
+            return builder.call(f, [ptr[0], ptr[1], a_n, ptr[2]] + ([a_n] if with_count else []))
+
+        return sig, codegen
+
+    return get
+
+
+_get3 = _getter(True)
+_get2 = _getter(False)
 
 
 @njit(cache=True)
