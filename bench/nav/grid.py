@@ -14,17 +14,23 @@ the longitude. Grid heading = true heading - sigma, and vectors turn by
 
     v_G = C_gG v_g,  C_gG = [[cos s, -sin s, 0], [sin s, cos s, 0], [0, 0, 1]]   (seed eq. 25)
 
-All functions are vectorised like :mod:`bench.nav.earth`: latitude and longitude in
-radians, scalars or arrays of shape (N,) in.
+The functions without a suffix are vectorised like :mod:`bench.nav.earth`: latitude and
+longitude in radians, scalars or arrays of shape (N,) in. Those ending in ``_s`` are their
+scalar, compiled (numba) ports for estimators' compiled steps: floats in, results in a
+preallocated array.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 from bench.nav import earth
+from bench.nav.earth import E2, A
 
-__all__ = ["grid_angle", "C_gG", "C_eG", "dsigma_denu"]
+__all__ = ["grid_angle", "C_gG", "C_eG", "dsigma_denu", "grid_angle_s", "C_gG_s", "C_eG_s", "dsigma_denu_s"]
 
 
 def grid_angle(lat: np.ndarray | float, lon: np.ndarray | float) -> np.ndarray:
@@ -71,3 +77,46 @@ def dsigma_denu(lat: np.ndarray | float, lon: np.ndarray | float, h: np.ndarray 
     out[..., 0] = ds_dlon / ((rn + h) * cl)
     out[..., 1] = ds_dlat / (rm + h)
     return out
+
+
+@njit(cache=True)
+def grid_angle_s(lat: float, lon: float) -> float:
+    """Scalar :func:`grid_angle`: sigma (rad, east of true north), in (-pi, pi]."""
+    return math.atan2(math.sin(lat) * math.sin(lon), math.cos(lon))
+
+
+@njit(cache=True)
+def C_gG_s(sigma: float, out: np.ndarray) -> None:
+    """Scalar :func:`C_gG`: ``out`` (3, 3) the rotation from ENU to the grid frame."""
+    s, c = math.sin(sigma), math.cos(sigma)
+    out[0, 0], out[0, 1], out[0, 2] = c, -s, 0.0
+    out[1, 0], out[1, 1], out[1, 2] = s, c, 0.0
+    out[2, 0], out[2, 1], out[2, 2] = 0.0, 0.0, 1.0
+
+
+@njit(cache=True)
+def C_eG_s(lat: float, lon: float, out: np.ndarray) -> None:
+    """Scalar :func:`C_eG`: ``out`` (3, 3) the rotation from ECEF to the grid frame (rows:
+    grid east, grid north, up in ECEF), from the normal alone."""
+    cl = math.cos(lat)
+    ux, uy, uz = cl * math.cos(lon), cl * math.sin(lon), math.sin(lat)
+    k = 1.0 / math.sqrt(ux * ux + uz * uz)  # |u x y_e|, 1 / xi
+    nx, nz = -uz * k, ux * k  # u x y_e, normalised; its y component is zero
+    out[0, 0], out[0, 1], out[0, 2] = -nz * uy, nz * ux - nx * uz, nx * uy  # north x up
+    out[1, 0], out[1, 1], out[1, 2] = nx, 0.0, nz
+    out[2, 0], out[2, 1], out[2, 2] = ux, uy, uz
+
+
+@njit(cache=True)
+def dsigma_denu_s(lat: float, lon: float, h: float, out: np.ndarray) -> None:
+    """Scalar :func:`dsigma_denu`: ``out`` (3,) rad per metre east, north, up. Not defined
+    at the pole itself (it divides by cos(lat))."""
+    sl, cl = math.sin(lat), math.cos(lat)
+    so, co = math.sin(lon), math.cos(lon)
+    w2 = 1.0 - E2 * sl * sl
+    rn = A / math.sqrt(w2)
+    rm = rn * (1.0 - E2) / w2
+    d = co * co + (sl * so) ** 2
+    out[0] = sl / d / ((rn + h) * cl)
+    out[1] = cl * so * co / d / (rm + h)
+    out[2] = 0.0

@@ -61,3 +61,23 @@ def test_the_grid_angle_gradient_matches_a_finite_displacement():
             assert fd == pytest.approx(g[k, axis], rel=1e-5, abs=1e-13), (k, axis)
     # near the pole the grid angle turns fast with a step east: 20 m at 88 N, 10 E is 0.3 arcmin
     assert np.degrees(g[0, 0] * 20.0) * 60.0 == pytest.approx(0.31, abs=0.01)
+
+
+def test_the_compiled_scalar_ports_equal_the_vectorised_functions():
+    from bench.nav.grid import C_eG_s, C_gG_s, dsigma_denu_s, grid_angle_s
+
+    h = 250.0
+    lat = np.concatenate([LAT, [np.pi / 2, -np.pi / 2]])
+    lon = np.concatenate([LON, [0.7, -2.1]])
+    out3, out33 = np.zeros(3), np.zeros((3, 3))
+    for la, lo in zip(lat, lon, strict=True):
+        s = grid_angle_s(la, lo)
+        assert s == pytest.approx(float(grid_angle(la, lo)), abs=1e-15)
+        C_gG_s(s, out33)
+        assert np.allclose(out33, C_gG(s), atol=1e-15)
+        C_eG_s(la, lo, out33)
+        assert np.allclose(out33, C_eG(la, lo), atol=1e-15)
+        if abs(la) < np.pi / 2 - 1e-6:
+            dsigma_denu_s(la, lo, h, out3)
+            want = dsigma_denu(la, lo, h)
+            assert np.allclose(out3, want, rtol=1e-13, atol=1e-25)
