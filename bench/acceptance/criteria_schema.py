@@ -147,7 +147,10 @@ def scoring_settings(
             floor_position=float(st.quantity("floor_position", "length", "m", 0.1, nonnegative=True)),  # type: ignore[arg-type]
             floor_velocity=float(st.quantity("floor_velocity", "velocity", "m/s", 0.01, nonnegative=True)),  # type: ignore[arg-type]
             floor_heading=float(st.quantity("floor_heading", "angle", "arcmin", 0.1, nonnegative=True)),  # type: ignore[arg-type]
+            reference_ns=int(st.time_ns("reference", "0 s")),  # type: ignore[arg-type]
         )
+        if switches.reference_ns < 0:
+            raise st.error("reference", "expected a duration of at least 0 s")
         st.finish()
     confidence = 0.95
     ct = t.table("consistency")

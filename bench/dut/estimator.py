@@ -263,6 +263,7 @@ _BUILTIN = {
     "seed000": "bench.estimators.seed000:Seed000",
     "seed001": "bench.estimators.seed001:Seed001",
     "seed002": "bench.estimators.seed002:Seed002",
+    "seed003": "bench.estimators.seed003:Seed003",
 }
 
 

@@ -36,6 +36,7 @@ from bench.dut import MODE_ALIGNING, NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE, DutI
 from bench.dut.estimator import CanView
 from bench.errors import ConfigError
 from bench.estimators import seed001_kernel as K  # noqa: N812 - the kernel layout constants
+from bench.estimators.fixes import take_fixes
 from bench.estimators.outblocks import OutputBlocks
 from bench.estimators.rest_alignment import RestAlignment, core_covariance
 from bench.estimators.seed001_meas import DDT, DK, MK
@@ -227,7 +228,7 @@ class Seed001(Estimator):
     def step(self, inputs: DutInputs) -> EstimatorOutput:
         if self.position is None:
             raise ConfigError("the seed001 estimator needs dut.config.initial_position", key="dut.config")
-        self._take_fixes(inputs)
+        self._pending = take_fixes(self._pending, inputs)
         imu = inputs.imu
         if self._rest.coarse:
             return self._coarse_step(inputs, imu)
@@ -254,16 +255,6 @@ class Seed001(Estimator):
             self._map_match(sol)
         return EstimatorOutput(sol, qual)
 
-
-    def _take_fixes(self, inputs: DutInputs) -> None:
-        g = inputs.gnss
-        if not len(g) or inputs.epoch_utc_ns is None:
-            return  # without BENCH_EPOCH the sentence times are not bench times
-        rows = np.column_stack([g["t_ns"].astype(float), g["lat"], g["lon"], g["h"], g["vel_n"][:, 0],
-                                g["vel_n"][:, 1], g["sigma_lat"], g["sigma_lon"], g["sigma_alt"],
-                                g["quality"].astype(float)])
-        allrows = np.vstack([self._pending, rows])
-        self._pending = np.ascontiguousarray(allrows[np.argsort(allrows[:, 0], kind="stable")])
 
     def _coarse_step(self, inputs: DutInputs, imu: np.ndarray) -> EstimatorOutput:
         """Sum the increments at rest; output "aligning" epochs at the surveyed position."""

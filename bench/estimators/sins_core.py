@@ -19,7 +19,16 @@ from bench.estimators.ins_model import DR, DV, EPS, NABLA, PHI, euler_jacobian, 
 from bench.estimators.kf import joseph_update
 from bench.nav.strapdown import _qmul, _rv2q
 
-__all__ = ["quat_dcm", "rotate_attitude", "move_position", "core_feedback", "zupt_update", "write_output"]
+__all__ = [
+    "quat_dcm",
+    "rotate_attitude",
+    "move_position",
+    "core_feedback",
+    "zupt_update",
+    "write_output",
+    "write_attitude",
+    "write_sigmas",
+]
 
 
 @njit(cache=True)
@@ -96,6 +105,30 @@ def zupt_update(sins: np.ndarray, P: np.ndarray, p0: np.ndarray, sigma_v: float,
 
 
 @njit(cache=True)
+def write_attitude(C: np.ndarray, r) -> None:
+    """The Euler angles of C_bn (ENU) into the NAV_SOLUTION record ``r``: heading in [0,
+    2 pi) clockwise from north, pitch, roll."""
+    hdg = math.atan2(C[0, 1], C[1, 1])
+    r.heading = hdg + 2.0 * math.pi if hdg < 0.0 else hdg
+    r.pitch = math.asin(min(1.0, max(-1.0, C[2, 1])))
+    r.roll = math.atan2(-C[2, 0], C[2, 2])
+
+
+@njit(cache=True)
+def write_sigmas(q, C: np.ndarray, Pr: np.ndarray, Pv: np.ndarray, Pphi: np.ndarray) -> None:
+    """The NAV_QUALITY record ``q``'s sigmas from the ENU position, velocity and attitude
+    error covariances (3, 3 each) and the attitude C_bn (Euler angles through
+    :func:`~bench.estimators.ins_model.euler_jacobian`)."""
+    J = np.zeros((3, 3))
+    euler_jacobian(C, J)
+    Pe = J @ Pphi @ J.T
+    for i in range(3):
+        q.sigma_pos[i] = math.sqrt(max(Pr[i, i], 0.0))
+        q.sigma_vel[i] = math.sqrt(max(Pv[i, i], 0.0))
+        q.sigma_att[i] = math.sqrt(max(Pe[i, i], 0.0))
+
+
+@njit(cache=True)
 def write_output(st: np.ndarray, off: int, P: np.ndarray, t: float, r, q) -> None:
     """One output epoch at ``t`` (ns) from the SINS state ``st[off:off+10]`` and the core
     covariance: the NAV_SOLUTION record ``r`` (time, position, velocity, heading in [0, 2
@@ -107,15 +140,7 @@ def write_output(st: np.ndarray, off: int, P: np.ndarray, t: float, r, q) -> Non
     r.lat, r.lon, r.h = st[off], st[off + 1], st[off + 2]
     for i in range(3):
         r.vel_n[i] = st[off + 3 + i]
-    hdg = math.atan2(C[0, 1], C[1, 1])
-    r.heading = hdg + 2.0 * math.pi if hdg < 0.0 else hdg
-    r.pitch = math.asin(min(1.0, max(-1.0, C[2, 1])))
-    r.roll = math.atan2(-C[2, 0], C[2, 2])
+    write_attitude(C, r)
     q.t_ns = np.int64(t)
-    J = np.zeros((3, 3))
-    euler_jacobian(C, J)
-    Pe = J @ P[PHI : PHI + 3, PHI : PHI + 3].copy() @ J.T
-    for i in range(3):
-        q.sigma_pos[i] = math.sqrt(max(P[DR + i, DR + i], 0.0))
-        q.sigma_vel[i] = math.sqrt(max(P[DV + i, DV + i], 0.0))
-        q.sigma_att[i] = math.sqrt(max(Pe[i, i], 0.0))
+    write_sigmas(q, C, P[DR : DR + 3, DR : DR + 3].copy(), P[DV : DV + 3, DV : DV + 3].copy(),
+                 P[PHI : PHI + 3, PHI : PHI + 3].copy())

@@ -8,8 +8,20 @@ errors. For each switch and each quantity -- ``position`` (3-D error vector, m),
 
 * **jump** = ``|e(ts) - e(ts-)|``: the change of the DUT's output across the switch
   beyond the truth's own change (``ts-`` the last usable epoch before the switch);
+* **step** = the largest ``|e(t_k) - e(t_k-1)|`` between consecutive epochs of the pre
+  window: how far the DUT's ordinary measurement updates move its solution in one epoch
+  (a 1 Hz position fix moves it by decimetres to a metre);
+* **jump_excess** = ``max(0, jump - step)``: the jump beyond that, what the switch itself
+  added (a switch that falls on an update epoch carries the update's step too);
 * the **pre-switch band**: over ``[ts - pre, ts)`` the mean ``m0`` and the half-width
-  ``band = max(max |e - m0|, floor)``;
+  ``band = max(max |e - m0|, floor)``; with a ``reference`` period R > 0, also the DUT's
+  ordinary excursions before the switch (**ordinary**): for every start ``tau`` (1 s
+  apart) with ``[tau - pre, tau + post]`` inside ``[ts - R, ts)``, the largest ``|e -
+  m(tau)|`` over ``[tau, tau + post]`` from the mean ``m(tau)`` over ``[tau - pre, tau)``
+  -- the post-switch measure applied to the DUT's own switch-free past -- and the band is
+  the largest of them and the pre-window band: an error that wanders (a
+  heading still converging, a weakly observable state) widens its own band, and only
+  what the switch adds beyond its ordinary wander counts;
 * **amplitude** = ``max |e(t) - m0|`` over ``[ts, ts + post]``: the peak excursion;
 * **excess** = ``max(0, amplitude - band)``: how far the excursion leaves the band the
   error kept before the switch (the oscillation the switch added, net of the DUT's
@@ -52,6 +64,8 @@ class SwitchSettings:
     floor_position: float = 0.1
     floor_velocity: float = 0.01
     floor_heading: float = math.radians(0.1 / 60.0)
+    #: how far back the band samples the DUT's ordinary excursions (0: the pre window only)
+    reference_ns: int = 0
 
     def floor(self, quantity: str) -> float:
         return {"position": self.floor_position, "velocity": self.floor_velocity, "heading": self.floor_heading}[
@@ -101,6 +115,8 @@ class SwitchAnalysis:
                 raise NoDataError("no commanded frame switch (no matching /bench/commands) in the window")
             return max(delays)
         measure, quantity = name.rsplit("_", 1)
+        if measure == "ordinary" and any(math.isnan(s.measures[quantity][measure]) for s in self.switches):
+            raise NoDataError("frameswitch.ordinary needs a reference period ([scoring.frame_switch] reference)")
         return max(s.measures[quantity][measure] for s in self.switches)
 
     def details(self) -> dict[str, Any]:
@@ -123,6 +139,10 @@ def _measure(
         return wrap_pi(d) if heading else d
 
     jump = float(np.linalg.norm(diff(e[i_sw], e[i_prev])))
+    # the largest change from one epoch to the next before the switch: what the DUT's
+    # ordinary measurement updates move its solution by
+    steps = np.linalg.norm(diff(e[pre[1:]], e[pre[:-1]]), axis=1) if len(pre) > 1 else np.zeros(0)
+    step_pre = float(np.max(steps)) if len(steps) else 0.0
     if len(pre):
         ref = e[pre[-1]]
         m0 = ref + np.mean(diff(e[pre], ref), axis=0)
@@ -133,23 +153,55 @@ def _measure(
         m0, band, rms_pre = e[i_prev], floor, math.nan
     dev = np.linalg.norm(diff(e[post], m0), axis=1)
     amplitude = float(np.max(dev))
-    outside = np.flatnonzero(dev > band)
-    if len(outside) == 0:
-        settling = 0.0
-    elif outside[-1] == len(post) - 1:
-        settling = math.inf
-    else:
-        settling = float((t[post[outside[-1]]] - t[i_sw]) * 1e-9)
+    settling = _settling(e, t, i_sw, post, m0, band, heading)
     rms_post = float(np.sqrt(np.mean(np.sum(e[post] ** 2, axis=1))))
     ratio = rms_post / rms_pre if rms_pre > 0 else (math.nan if math.isnan(rms_pre) else math.inf)
     return {
         "jump": jump,
+        "step": step_pre,
+        "jump_excess": max(0.0, jump - step_pre),
         "amplitude": amplitude,
         "excess": max(0.0, amplitude - band),
         "band": band,
         "settling": settling,
         "rms_ratio": ratio,
+        "m0": m0,  # (internal: the reference mean, dropped from the outcome)
     }
+
+
+def _settling(e: np.ndarray, t: np.ndarray, i_sw: int, post: np.ndarray, m0: np.ndarray, band: float,
+              heading: bool) -> float:
+    """Time from the switch to the last post-window epoch outside ``band`` around ``m0``."""
+    d = e[post] - m0
+    dev = np.linalg.norm(wrap_pi(d) if heading else d, axis=1)
+    outside = np.flatnonzero(dev > band)
+    if len(outside) == 0:
+        return 0.0
+    if outside[-1] == len(post) - 1:
+        return math.inf
+    return float((t[post[outside[-1]]] - t[i_sw]) * 1e-9)
+
+
+def _ordinary(e: np.ndarray, t: np.ndarray, usable: np.ndarray, lo: int, ts: int, settings: SwitchSettings,
+              heading: bool) -> float:
+    """The largest excursion of the error before the switch, measured as the post window
+    measures the switch's: over ``[tau, tau + post]`` from the mean of ``[tau - pre, tau)``,
+    for starts ``tau`` 1 s apart with both stretches inside ``[lo, ts)``."""
+    tu = t[usable]
+    worst = 0.0
+    step = 1_000_000_000
+    tau = lo + settings.pre_ns
+    while tau + settings.post_ns < ts:
+        a = usable[(tu >= tau - settings.pre_ns) & (tu < tau)]
+        b = usable[(tu >= tau) & (tu <= tau + settings.post_ns)]
+        if len(a) and len(b):
+            ref = e[a[-1]]
+            d = e[a] - ref
+            m = ref + np.mean(wrap_pi(d) if heading else d, axis=0)
+            d = e[b] - m
+            worst = max(worst, float(np.max(np.linalg.norm(wrap_pi(d) if heading else d, axis=1))))
+        tau += step
+    return worst
 
 
 def analyse_switches(
@@ -194,9 +246,19 @@ def analyse_switches(
             float(np.degrees(errors.lat[i_sw])),
             float(delays[-1] * 1e-9) if delays else math.nan,
         )
+        ref_lo = max(ts - settings.reference_ns, sw_times[k - 1] if k > 0 else ts - settings.reference_ns)
         for q in SWITCH_QUANTITIES:
-            outcome.measures[q] = _measure(
-                _vectors(errors, q), t, i_prev, i_sw, pre, post, settings.floor(q), q == "heading"
-            )
+            e = _vectors(errors, q)
+            outcome.measures[q] = _measure(e, t, i_prev, i_sw, pre, post, settings.floor(q), q == "heading")
+            outcome.measures[q]["ordinary"] = math.nan
+            if settings.reference_ns > 0:
+                ordinary = _ordinary(e, t, usable_idx, ref_lo, ts, settings, q == "heading")
+                m = outcome.measures[q]
+                m["ordinary"] = ordinary
+                if ordinary > m["band"]:
+                    m["band"] = ordinary
+                    m["excess"] = max(0.0, m["amplitude"] - ordinary)
+                    m["settling"] = _settling(e, t, i_sw, post, m["m0"], ordinary, q == "heading")
+            outcome.measures[q].pop("m0", None)
         out.switches.append(outcome)
     return out

@@ -94,8 +94,12 @@ _FAULTS = {
 }
 _SWITCH_MEASURES = {
     "jump": "jump across the switch beyond the truth's change",
+    "step": "largest epoch-to-epoch change of the error before the switch (the DUT's ordinary updates)",
+    "jump_excess": "jump across the switch beyond the largest epoch-to-epoch change before it",
     "amplitude": "peak excursion after the switch from the pre-switch mean",
     "excess": "peak excursion beyond the pre-switch band",
+    "band": "the pre-switch band (the pre window's, or the ordinary excursions' when larger)",
+    "ordinary": "largest excursion over a post-window stretch before the switch (with a reference period)",
     "settling": "time to settle back into the pre-switch band",
     "rms_ratio": "RMS after / RMS before the switch",
 }

@@ -11,6 +11,7 @@ from scipy.stats import chi2
 
 from bench.faults.schedule import FaultWindow
 from bench.scoring.data import NoDataError, load_run
+from bench.scoring.frameswitch import SwitchSettings
 from bench.scoring.integrity import check_integrity
 from bench.scoring.metrics import Scorer, ScoringSettings
 from bench.scoring.windows import WindowSpec
@@ -111,6 +112,53 @@ def test_no_fault_windows_is_no_data_but_false_alarms_count(tmp_path, traj, trut
 
 
 # -- frame switch ------------------------------------------------------------------------
+def test_a_reference_period_widens_the_band_to_the_duts_ordinary_wander(tmp_path, traj, truth):
+    """A heading error that wanders 2' with a 25 s period, switch or not: judged against
+    the pre window alone the wander after the switch looks like an oscillation; against
+    its own ordinary excursions over the reference period it is none. A 3' swing added by
+    the switch stands out either way."""
+    t = _t()
+    ts = t / S
+    frame = (ts >= 75.0).astype(np.uint8)
+    wander = 2 * ARCMIN * np.sin(2 * np.pi * ts / 25.0)
+    swing = 3 * ARCMIN * np.exp(-(((ts - 80.0) / 1.5) ** 2))
+    base = dict(pre_ns=15 * S, post_ns=15 * S, floor_heading=0.1 * ARCMIN)
+    out = {}
+    for name, att0 in (("wander", wander), ("swing", wander + swing)):
+        nav = nav_of(traj, t, att=np.column_stack([att0, 0 * ts, 0 * ts]), frame=frame)
+        for ref in (0, 60):
+            st = ScoringSettings(switches=SwitchSettings(reference_ns=ref * S, **base))
+            sc = _scorer(tmp_path, traj, truth, nav, settings=st, name=f"{name}{ref}.mcap")
+            out[name, ref] = sc.metric("frameswitch.excess_heading", ALL).value
+            if ref:
+                ordinary = sc.metric("frameswitch.ordinary_heading", ALL).value
+                assert 2.5 * ARCMIN < ordinary < 4.1 * ARCMIN  # the wander's swing within 15 s
+            else:
+                with pytest.raises(NoDataError):
+                    sc.metric("frameswitch.ordinary_heading", ALL)
+    assert out["wander", 0] > 0.3 * ARCMIN  # the pre window alone calls the wander an oscillation
+    assert out["wander", 60] == 0.0
+    assert out["swing", 60] > 1.0 * ARCMIN
+    assert out["swing", 0] > out["swing", 60]
+
+
+def test_a_switch_on_an_update_epoch_is_judged_beyond_the_updates_own_step(tmp_path, traj, truth):
+    """A DUT whose 1 Hz fixes move its position by 0.6 m: a switch that falls on a fix
+    epoch and moves it by 0.6 m has no excess; one that moves it by 2 m has 1.4 m."""
+    t = _t()
+    ts = t / S
+    frame = (ts >= 51.0).astype(np.uint8)
+    saw = 0.6 * (np.floor(ts) % 2)  # 0.6 m steps north on the whole seconds (up at 51 s)
+    for extra, excess in ((0.0, 0.0), (1.4, 1.4)):
+        north = saw + np.where(ts >= 51, extra, 0.0)
+        pos = np.column_stack([0 * ts, north, 0 * ts])
+        nav = nav_of(traj, t, pos_enu=pos, frame=frame)
+        s = _scorer(tmp_path, traj, truth, nav, name=f"r{extra}.mcap")
+        assert s.metric("frameswitch.step_position", ALL).value == pytest.approx(0.6, abs=1e-6)
+        assert s.metric("frameswitch.jump_position", ALL).value == pytest.approx(0.6 + extra, abs=1e-6)
+        assert s.metric("frameswitch.jump_excess_position", ALL).value == pytest.approx(excess, abs=1e-6)
+
+
 def test_frame_switch_jump_oscillation_settling_ratio(tmp_path, traj, truth):
     t = _t()
     ts = t / S
@@ -129,6 +177,8 @@ def test_frame_switch_jump_oscillation_settling_ratio(tmp_path, traj, truth):
     assert s.metric("frameswitch.jump_position", ALL).value == pytest.approx(1.5, abs=1e-6)
     assert s.metric("frameswitch.jump_velocity", ALL).value == pytest.approx(0.2, abs=1e-9)
     assert s.metric("frameswitch.jump_heading", ALL).value == pytest.approx(0.0, abs=1e-12)
+    assert s.metric("frameswitch.step_position", ALL).value == pytest.approx(0.0, abs=1e-6)
+    assert s.metric("frameswitch.jump_excess_position", ALL).value == pytest.approx(1.5, abs=1e-6)
     assert s.metric("frameswitch.amplitude_heading", ALL).value == pytest.approx(3 * ARCMIN, rel=1e-9)
     band = math.radians(0.1 / 60)  # the floor: the heading error was constant before
     assert s.metric("frameswitch.excess_heading", ALL).value == pytest.approx(3 * ARCMIN - band, rel=1e-9)

@@ -1,0 +1,483 @@
+"""Compiled step of the seed-003 estimator: SINS / position / velocity integration in the
+geographic frame g or the polar grid frame G, and the switch between them (numba).
+
+One call per scheduler step runs, for every IMU frame of the step: the bias
+compensation; the mechanization of the frame in use (g: :func:`bench.nav.strapdown._step`,
+latitude, longitude, height, ENU velocity, C_b^n; G: :func:`bench.nav.ecef.step_e`, ECEF
+position, velocity and C_b^e, whose projections on G, ``C_e^G``, are seed 003's grid-frame
+navigation parameters); the commands and the automatic switch; the covariance time update
+(g: :func:`bench.estimators.ins_model.ins_error_matrix`, seed eq. 9-13; G:
+:func:`bench.estimators.grid_model.grid_error_matrix`, eq. 18-22); the fine alignment's
+zero-velocity updates at rest, then the position fixes (g: ENU metres; G: ECEF, eq. 24) and
+the velocity aid (the Doppler forward speed with the non-holonomic constraint, in the body
+frame), with closed-loop feedback; and the output epochs, geographic whatever the frame
+(ICD 2.2).
+
+A switch converts the navigation parameters (eq. 23, 26-27) and, with ``P_CONV`` = 1, the
+filter's covariance (eq. 28-38, :mod:`bench.estimators.frame_switch`); with 0 it restarts
+the attitude, velocity and position covariance in the new frame from the configured
+initial sigmas (the paper's comparison), with 2 it keeps the matrix as it is.
+
+The 15 states: attitude error (0-2, in the frame in use), velocity error (3-5, idem),
+position error (6-8: metres E, N, U in g; ECEF metres in G), gyro (9-11) and accelerometer
+(12-14) biases in the body frame; computed minus true (:mod:`bench.estimators.ins_model`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from bench.dut import MODE_ALIGNING, MODE_BDS, MODE_DOPPLER, MODE_INERTIAL, MODE_MULTI_SENSOR
+from bench.estimators.fixes import FIX_COLS
+from bench.estimators.frame_switch import covariance_to_geographic, covariance_to_grid
+from bench.estimators.grid_model import grid_error_matrix
+from bench.estimators.ins_model import (
+    DR,
+    DV,
+    EPS,
+    N_CORE,
+    NABLA,
+    PHI,
+    discretize,
+    ins_error_matrix,
+    position_difference,
+)
+from bench.estimators.kf import innovation_covariance, joseph_update, nis, time_update
+from bench.estimators.sins_core import (
+    core_feedback,
+    quat_dcm,
+    rotate_attitude,
+    write_attitude,
+    write_output,
+    write_sigmas,
+    zupt_update,
+)
+from bench.nav.ecef import ecef_position, enu_frame, from_geographic, geodetic, grid_frame, step_e, to_geographic
+from bench.nav.strapdown import _step
+
+__all__ = ["N_STATES", "ST_SIZE", "PRM_SIZE", "FIX_COLS", "run_step", "FRAME_GEOGRAPHIC", "FRAME_GRID"]
+
+N_STATES = N_CORE
+FRAME_GEOGRAPHIC, FRAME_GRID = 0.0, 1.0
+
+# st layout
+S_SINS = 0  # 20: ENU strapdown state (frame g) or ECEF state (frame G)
+S_BG, S_BA = 20, 23  # gyro and accelerometer bias compensation
+S_FRAME, S_MANUAL, S_PHASE = 26, 27, 28  # frame in use; 1 once a command chose it; 1 alignment, 2 navigation
+S_TLAST, S_TSINCE = 29, 30  # last IMU time (ns), time since the last time update (s)
+S_FN = 31  # 3: sum of C_b^n dvel (g) or C_b^e dvel (G) since the last time update
+S_NEXT_OUT, S_ALIGN_END = 34, 35
+S_P0 = 36  # 3: the surveyed position (alignment)
+S_DV, S_DOK, S_DT = 39, 40, 41  # latest Doppler: speed, valid, arrival (ns)
+S_NEXT_VEL, S_MODE, S_TNOM = 42, 43, 44  # next velocity update (ns), output mode, nominal IMU interval (s)
+S_LAST_BDS, S_LAST_VEL = 45, 46  # ns of the last position / velocity update
+S_NSWITCH, S_NREFUSED, S_NBDS, S_NREJ, S_NVEL = 47, 48, 49, 50, 51  # counters
+S_CONSUMED, S_CCONSUMED = 52, 53  # fixes, commands consumed in this call
+S_NIS, S_TSWITCH = 54, 55  # last position NIS; ns of the last switch
+S_W = 56  # 3: body rate of the last interval, rad/s
+ST_SIZE = 64
+
+# prm layout
+P_NG, P_NA, P_QG, P_QA, P_TU, P_OUT, P_ZUPT, P_RP0 = 0, 1, 2, 3, 4, 5, 6, 7
+P_SWLAT, P_HYST, P_GLIM, P_AUTO, P_CONV = 8, 9, 10, 11, 12  # rad, rad, rad, 0/1, 1 convert / 0 restart / 2 copy
+P_RDOP, P_RNHC, P_VELPER, P_DOPTO = 13, 14, 15, 16  # velocity aid sigmas (m/s), period and validity (ns)
+P_GATE, P_AGE, P_RPOS = 17, 18, 19  # position chi-square gate (0 off), aiding age (ns), sigma floor (m)
+P_S0 = 20  # 9: restart sigmas of attitude (E, N, U rad), velocity (m/s), position (m, E N U)
+P_VEL = 29  # 1: use the velocity aid
+PRM_SIZE = 32
+
+_SIGMA_ATT_MAX = 655.35 / 60.0 * math.pi / 180.0  # rad: NAV_QUALITY's largest attitude sigma
+# cos^2 L sin^2 lon above this: the grid frame's north (u x y_e) is too short to be defined
+_GRID_SINGULAR = 0.99
+
+
+@njit(cache=True)
+def _grid_dcms(st: np.ndarray, CeG: np.ndarray, Cen: np.ndarray) -> tuple[float, float, float]:
+    """C_e^G and C_e^n at the ECEF position of ``st``; returns (lat, lon, h)."""
+    lat, lon, h = geodetic(st[S_SINS], st[S_SINS + 1], st[S_SINS + 2])
+    grid_frame(lat, lon, CeG)
+    enu_frame(lat, lon, Cen)
+    return lat, lon, h
+
+
+@njit(cache=True)
+def _feedback(st: np.ndarray, x: np.ndarray) -> None:
+    """Closed loop: the estimate into the navigation state of the frame in use and the
+    bias compensations."""
+    sins = st[S_SINS : S_SINS + 20]
+    if st[S_FRAME] == FRAME_GEOGRAPHIC:
+        core_feedback(sins, st[S_BG : S_BG + 3], st[S_BA : S_BA + 3], x)
+        return
+    CeG = np.empty((3, 3))
+    Cen = np.empty((3, 3))
+    _grid_dcms(st, CeG, Cen)
+    # C_b^e true = C_G^e (I + [phi_G x]) C_e^G C_b^e = (I + [C_G^e phi_G x]) C_b^e
+    pe = CeG.T @ x[PHI : PHI + 3]
+    rotate_attitude(sins, 6, pe[0], pe[1], pe[2])
+    dve = CeG.T @ x[DV : DV + 3]
+    for i in range(3):
+        sins[3 + i] -= dve[i]
+        sins[16 + i] -= dve[i]
+        sins[i] -= x[DR + i]
+        st[S_BG + i] += x[EPS + i]
+        st[S_BA + i] += x[NABLA + i]
+
+
+@njit(cache=True)
+def _nav_dcm_velocity(st: np.ndarray, C: np.ndarray, v: np.ndarray) -> None:
+    """C_b^nav and the velocity in the frame in use (g: ENU; G: grid)."""
+    quat_dcm(st, S_SINS + 6, C)
+    if st[S_FRAME] == FRAME_GEOGRAPHIC:
+        v[:] = st[S_SINS + 3 : S_SINS + 6]
+        return
+    CeG = np.empty((3, 3))
+    Cen = np.empty((3, 3))
+    _grid_dcms(st, CeG, Cen)
+    C[:, :] = CeG @ C.copy()
+    v[:] = CeG @ st[S_SINS + 3 : S_SINS + 6]
+
+
+@njit(cache=True)
+def _time_update(st: np.ndarray, P: np.ndarray, prm: np.ndarray, T: float) -> None:
+    n = N_STATES
+    F = np.zeros((n, n))
+    Qc = np.zeros((n, n))
+    C = np.zeros((3, 3))
+    v = np.zeros(3)
+    _nav_dcm_velocity(st, C, v)
+    if st[S_FRAME] == FRAME_GEOGRAPHIC:
+        f_n = st[S_FN : S_FN + 3] / T
+        ins_error_matrix(F, st[S_SINS], st[S_SINS + 2], v, f_n, C)
+    else:
+        CeG = np.empty((3, 3))
+        Cen = np.empty((3, 3))
+        lat, _, h = _grid_dcms(st, CeG, Cen)
+        f_G = CeG @ (st[S_FN : S_FN + 3] / T)
+        grid_error_matrix(F, lat, h, CeG, v, f_G, C)
+    for i in range(3):
+        Qc[PHI + i, PHI + i] = prm[P_NG] ** 2
+        Qc[DV + i, DV + i] = prm[P_NA] ** 2
+        Qc[EPS + i, EPS + i] = prm[P_QG] ** 2
+        Qc[NABLA + i, NABLA + i] = prm[P_QA] ** 2
+    Phi = np.zeros((n, n))
+    Qd = np.zeros((n, n))
+    discretize(F, Qc, T, Phi, Qd)
+    time_update(P, Phi, Qd)
+    for i in range(3):
+        st[S_FN + i] = 0.0
+    st[S_TSINCE] = 0.0
+
+
+@njit(cache=True)
+def _catch_up(st: np.ndarray, P: np.ndarray, prm: np.ndarray) -> None:
+    if st[S_TSINCE] > 0.0:
+        _time_update(st, P, prm, st[S_TSINCE])
+
+
+@njit(cache=True)
+def restart_covariance(st: np.ndarray, P: np.ndarray, prm: np.ndarray) -> None:
+    """The attitude, velocity and position blocks of ``P`` (and their cross terms) set to
+    the configured initial sigmas in the frame in use; the bias block kept."""
+    for i in range(9):
+        for j in range(N_STATES):
+            P[i, j] = 0.0
+            P[j, i] = 0.0
+    for i in range(6):
+        P[i, i] = prm[P_S0 + i] ** 2
+    if st[S_FRAME] == FRAME_GEOGRAPHIC:
+        for i in range(3):
+            P[DR + i, DR + i] = prm[P_S0 + 6 + i] ** 2
+        return
+    CeG = np.empty((3, 3))
+    Cen = np.empty((3, 3))
+    _grid_dcms(st, CeG, Cen)
+    D = np.zeros((3, 3))
+    for i in range(3):
+        D[i, i] = prm[P_S0 + 6 + i] ** 2
+    Pe = Cen.T @ D @ Cen
+    P[DR : DR + 3, DR : DR + 3] = Pe
+
+
+@njit(cache=True)
+def switch_frame(st: np.ndarray, P: np.ndarray, prm: np.ndarray, to_grid: bool, t: float) -> bool:
+    """Switch the navigation frame: the navigation parameters converted (eq. 23, 26-27),
+    the covariance converted (eq. 36-38), restarted or kept as ``P_CONV`` says. Returns
+    False (and counts a refusal) where the target frame is singular: the grid frame where
+    ``cos^2 L sin^2 lon`` > 0.99, the geographic one beyond ``P_GLIM``."""
+    _catch_up(st, P, prm)
+    sins = st[S_SINS : S_SINS + 20]
+    tmp = sins.copy()
+    Cx = np.empty((3, 3))
+    if to_grid:
+        lat, lon, h = sins[0], sins[1], sins[2]
+        if (math.cos(lat) * math.sin(lon)) ** 2 > _GRID_SINGULAR:
+            st[S_NREFUSED] += 1.0
+            return False
+        Cen = np.empty((3, 3))
+        enu_frame(lat, lon, Cen)
+        grid_frame(lat, lon, Cx)
+        vG = Cx @ (Cen.T @ np.ascontiguousarray(sins[3:6]))  # C_gG v_g = C_eG C_ne v_n
+        if prm[P_CONV] == 1.0 and not covariance_to_grid(P, lat, lon, h, vG):
+            st[S_NREFUSED] += 1.0
+            return False
+        from_geographic(tmp, sins)
+        st[S_FRAME] = FRAME_GRID
+    else:
+        lat, lon, h = geodetic(sins[0], sins[1], sins[2])
+        if abs(lat) > prm[P_GLIM]:
+            st[S_NREFUSED] += 1.0
+            return False
+        grid_frame(lat, lon, Cx)
+        vG = Cx @ np.ascontiguousarray(sins[3:6])
+        if prm[P_CONV] == 1.0 and not covariance_to_geographic(P, lat, lon, h, vG):
+            st[S_NREFUSED] += 1.0
+            return False
+        to_geographic(tmp, sins)
+        st[S_FRAME] = FRAME_GEOGRAPHIC
+    if prm[P_CONV] == 0.0:
+        restart_covariance(st, P, prm)
+    st[S_NSWITCH] += 1.0
+    st[S_TSWITCH] = t
+    return True
+
+
+@njit(cache=True)
+def _position_update(st: np.ndarray, P: np.ndarray, prm: np.ndarray, fix: np.ndarray, t: float) -> None:
+    """A position fix (measured at ``fix[0]`` ns) against the INS carried back to that
+    time along its velocity; sigmas from the fix (GST) with a floor, chi-square gated."""
+    if fix[9] <= 0.0:
+        return
+    back = (t - fix[0]) * 1e-9
+    n = N_STATES
+    z = np.zeros(3)
+    H = np.zeros((3, n))
+    R = np.zeros((3, 3))
+    sig = np.array([max(fix[7], prm[P_RPOS]), max(fix[6], prm[P_RPOS]), max(fix[8], prm[P_RPOS])])
+    sins = st[S_SINS : S_SINS + 20]
+    if st[S_FRAME] == FRAME_GEOGRAPHIC:
+        position_difference(sins[0], sins[1], sins[2], fix[1], fix[2], fix[3], z)
+        for i in range(3):
+            z[i] -= sins[3 + i] * back
+            R[i, i] = sig[i] ** 2
+    else:
+        rf = np.zeros(3)
+        ecef_position(fix[1], fix[2], fix[3], rf)
+        for i in range(3):
+            z[i] = sins[i] - sins[3 + i] * back - rf[i]
+        Cen = np.empty((3, 3))
+        enu_frame(fix[1], fix[2], Cen)
+        D = np.zeros((3, 3))
+        for i in range(3):
+            D[i, i] = sig[i] ** 2
+        R[:, :] = Cen.T @ D @ Cen  # seed eq. 24: the ECEF difference, its noise rotated from ENU
+    for i in range(3):
+        H[i, DR + i] = 1.0
+    S = innovation_covariance(P, H, R)
+    d2 = nis(z, S)
+    st[S_NIS] = d2
+    if prm[P_GATE] > 0.0 and d2 > prm[P_GATE]:
+        st[S_NREJ] += 1.0
+        return
+    x = np.zeros(n)
+    joseph_update(x, P, z, H, R)
+    _feedback(st, x)
+    st[S_NBDS] += 1.0
+    st[S_LAST_BDS] = t
+
+
+@njit(cache=True)
+def _velocity_update(st: np.ndarray, P: np.ndarray, prm: np.ndarray, t: float) -> None:
+    """The velocity aid in the body frame: (right, forward, up) = (0, Doppler speed, 0),
+    the same in either frame (``v_b = C_b^nav' v_nav``)."""
+    n = N_STATES
+    C = np.zeros((3, 3))
+    v = np.zeros(3)
+    _nav_dcm_velocity(st, C, v)
+    vb = C.T @ v
+    # v_b computed = C'(I + [phi x])(v + dv): H_phi = -C' [v x], H_dv = C'
+    sk = np.zeros((3, 3))
+    sk[0, 1], sk[0, 2], sk[1, 0], sk[1, 2], sk[2, 0], sk[2, 1] = -v[2], v[1], v[2], -v[0], -v[1], v[0]
+    Mphi = -(C.T @ sk)
+    z = np.zeros(3)
+    H = np.zeros((3, n))
+    R = np.zeros((3, 3))
+    for i in range(3):
+        z[i] = vb[i] - (st[S_DV] if i == 1 else 0.0)
+        for j in range(3):
+            H[i, DV + j] = C[j, i]
+            H[i, PHI + j] = Mphi[i, j]
+        R[i, i] = (prm[P_RDOP] if i == 1 else prm[P_RNHC]) ** 2
+    x = np.zeros(n)
+    joseph_update(x, P, z, H, R)
+    _feedback(st, x)
+    st[S_NVEL] += 1.0
+    st[S_LAST_VEL] = t
+
+
+@njit(cache=True)
+def _output(st: np.ndarray, P: np.ndarray, t: float, r, q) -> None:
+    """One epoch, geographic whatever the frame (ICD 2.2); byte 44's frame bits."""
+    if st[S_FRAME] == FRAME_GEOGRAPHIC:
+        write_output(st, S_SINS, P, t, r, q)
+    else:
+        CeG = np.empty((3, 3))
+        Cen = np.empty((3, 3))
+        lat, lon, h = _grid_dcms(st, CeG, Cen)
+        Cbe = np.empty((3, 3))
+        quat_dcm(st, S_SINS + 6, Cbe)
+        C = Cen @ Cbe
+        r.t_ns = np.int64(t)
+        r.lat, r.lon, r.h = lat, lon, h
+        ve = Cen @ np.ascontiguousarray(st[S_SINS + 3 : S_SINS + 6])
+        for i in range(3):
+            r.vel_n[i] = ve[i]
+        write_attitude(C, r)
+        q.t_ns = np.int64(t)
+        M = Cen @ CeG.T  # G to ENU
+        write_sigmas(q, C, Cen @ P[DR : DR + 3, DR : DR + 3] @ Cen.T, M @ P[DV : DV + 3, DV : DV + 3] @ M.T,
+                     M @ P[PHI : PHI + 3, PHI : PHI + 3] @ M.T)
+    for i in range(3):
+        q.sigma_pos[i] = min(q.sigma_pos[i], 655.35)
+        q.sigma_vel[i] = min(q.sigma_vel[i], 65.535)
+        q.sigma_att[i] = min(q.sigma_att[i], _SIGMA_ATT_MAX)
+    r.frame = np.uint8(st[S_FRAME])
+    r.mode = np.uint8(st[S_MODE])
+    r.valid = np.uint8(1 if st[S_PHASE] == 2.0 else 0)
+
+
+@njit(cache=True)
+def _latitude(st: np.ndarray) -> float:
+    if st[S_FRAME] == FRAME_GEOGRAPHIC:
+        return st[S_SINS]
+    return geodetic(st[S_SINS], st[S_SINS + 1], st[S_SINS + 2])[0]
+
+
+@njit(cache=True)
+def _mode(st: np.ndarray, prm: np.ndarray, t: float) -> float:
+    if st[S_PHASE] != 2.0:
+        return float(MODE_ALIGNING)
+    pos = t - st[S_LAST_BDS] <= prm[P_AGE]
+    vel = t - st[S_LAST_VEL] <= prm[P_AGE]
+    if pos and vel:
+        return float(MODE_MULTI_SENSOR)
+    if pos:
+        return float(MODE_BDS)
+    if vel:
+        return float(MODE_DOPPLER)
+    return float(MODE_INERTIAL)
+
+
+@njit(cache=True)
+def run_step(
+    st: np.ndarray,
+    P: np.ndarray,
+    prm: np.ndarray,
+    dth: np.ndarray,
+    dvel: np.ndarray,
+    t_imu: np.ndarray,
+    d_t: np.ndarray,
+    d_v: np.ndarray,
+    d_ok: np.ndarray,
+    c_t: np.ndarray,
+    c_code: np.ndarray,
+    fixes: np.ndarray,
+    sol: np.ndarray,
+    qual: np.ndarray,
+) -> int:
+    """Process one step's IMU frames (``dth``, ``dvel`` (N, 3), ``t_imu`` (N,) ns), Doppler
+    samples (arrival ns, speed m/s, valid; (M,)), commands (arrival ns, BENCH_CMD code;
+    (K,)) and pending fixes (``fixes`` (F, FIX_COLS), by measurement time), writing the
+    output epochs into ``sol``/``qual`` (length >= N). Returns the number of epochs;
+    ``st[S_CONSUMED]``, ``st[S_CCONSUMED]``: the fixes and commands used up."""
+    n_out = 0
+    j = 0
+    jc = 0
+    jf = 0
+    th = np.zeros(3)
+    dv = np.zeros(3)
+    C = np.zeros((3, 3))
+    sins = st[S_SINS : S_SINS + 20]
+    for k in range(t_imu.shape[0]):
+        t = float(t_imu[k])
+        while j < d_t.shape[0] and d_t[j] <= t:
+            st[S_DV] = d_v[j]
+            st[S_DOK] = 1.0 if d_ok[j] else 0.0
+            st[S_DT] = float(d_t[j])
+            j += 1
+        T = (t - st[S_TLAST]) * 1e-9
+        st[S_TLAST] = t
+        if T <= 0.0:
+            continue
+        if st[S_TNOM] * 1.5 < T:  # frames lost on the wire: their increments are lost with them
+            T = st[S_TNOM]
+        for i in range(3):
+            th[i] = dth[k, i] - st[S_BG + i] * T
+            dv[i] = dvel[k, i] - st[S_BA + i] * T
+            st[S_W + i] = th[i] / T
+        if st[S_FRAME] == FRAME_GEOGRAPHIC:
+            _step(sins, th, dv, T)
+        else:
+            step_e(sins, th, dv, T)
+        quat_dcm(st, S_SINS + 6, C)
+        for i in range(3):
+            st[S_FN + i] += C[i, 0] * dv[0] + C[i, 1] * dv[1] + C[i, 2] * dv[2]
+        st[S_TSINCE] += T
+        nav = st[S_PHASE] == 2.0
+        # commands: at the first IMU frame at or after their arrival
+        while jc < c_t.shape[0] and c_t[jc] <= t:
+            code = c_code[jc]
+            jc += 1
+            if not nav:
+                continue
+            if code == 1 or code == 2:
+                st[S_MANUAL] = 1.0
+                want = FRAME_GRID if code == 1 else FRAME_GEOGRAPHIC
+                if st[S_FRAME] != want:
+                    switch_frame(st, P, prm, want == FRAME_GRID, t)
+            elif code == 3:
+                _catch_up(st, P, prm)
+                restart_covariance(st, P, prm)
+        if nav and st[S_MANUAL] == 0.0 and prm[P_AUTO] > 0.0:
+            lat = abs(_latitude(st))
+            if st[S_FRAME] == FRAME_GEOGRAPHIC and lat >= prm[P_SWLAT]:
+                switch_frame(st, P, prm, True, t)
+            elif st[S_FRAME] == FRAME_GRID and lat < prm[P_SWLAT] - prm[P_HYST]:
+                switch_frame(st, P, prm, False, t)
+        if st[S_TSINCE] >= prm[P_TU] - 1e-6:
+            _time_update(st, P, prm, st[S_TSINCE])
+            if not nav:
+                x = zupt_update(sins, P, st[S_P0 : S_P0 + 3], prm[P_ZUPT], prm[P_RP0])
+                _feedback(st, x)
+        if not nav and t >= st[S_ALIGN_END]:
+            _catch_up(st, P, prm)
+            x = zupt_update(sins, P, st[S_P0 : S_P0 + 3], prm[P_ZUPT], prm[P_RP0])
+            _feedback(st, x)
+            st[S_PHASE] = 2.0
+            st[S_NEXT_VEL] = t + prm[P_VELPER]
+            nav = True
+        while jf < fixes.shape[0] and fixes[jf, 0] <= t:  # (at rest the alignment has its own)
+            if nav:
+                _catch_up(st, P, prm)
+                _position_update(st, P, prm, fixes[jf], t)
+            jf += 1
+        if nav and t >= st[S_NEXT_VEL]:
+            st[S_NEXT_VEL] += prm[P_VELPER]
+            if prm[P_VEL] > 0.0 and st[S_DOK] > 0.0 and t - st[S_DT] <= prm[P_DOPTO]:
+                _catch_up(st, P, prm)
+                _velocity_update(st, P, prm, t)
+        st[S_MODE] = _mode(st, prm, t)
+        if t >= st[S_NEXT_OUT] and t % prm[P_OUT] == 0.0:
+            _output(st, P, t, sol[n_out], qual[n_out])
+            n_out += 1
+            st[S_NEXT_OUT] = t + prm[P_OUT]
+    while j < d_t.shape[0]:  # samples after the step's last IMU frame (or a step without one)
+        st[S_DV] = d_v[j]
+        st[S_DOK] = 1.0 if d_ok[j] else 0.0
+        st[S_DT] = float(d_t[j])
+        j += 1
+    st[S_CONSUMED] = jf
+    st[S_CCONSUMED] = jc
+    return n_out
