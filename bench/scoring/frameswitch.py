@@ -13,6 +13,11 @@ errors. For each switch and each quantity -- ``position`` (3-D error vector, m),
   (a 1 Hz position fix moves it by decimetres to a metre);
 * **jump_excess** = ``max(0, jump - step)``: the jump beyond that, what the switch itself
   added (a switch that falls on an update epoch carries the update's step too);
+* **step_after** = the largest epoch-to-epoch change from the switch to the end of the
+  post window, and **step_ratio** = step_after over the largest epoch-to-epoch change
+  before the switch (over the reference period when one is set, else the pre window): a
+  filter the switch disturbed (a covariance restarted, gains suddenly large) corrects its
+  solution by more than it ever did before, at the switch or at the next updates;
 * the **pre-switch band**: over ``[ts - pre, ts)`` the mean ``m0`` and the half-width
   ``band = max(max |e - m0|, floor)``; with a ``reference`` period R > 0, also the DUT's
   ordinary excursions before the switch (**ordinary**): for every start ``tau`` (1 s
@@ -169,6 +174,23 @@ def _measure(
     }
 
 
+def _steps(m: dict[str, float], e: np.ndarray, t: np.ndarray, ref: np.ndarray, i_sw: int, post: np.ndarray,
+           heading: bool) -> None:
+    """``step_after``: the largest epoch-to-epoch change of the error from the switch to the
+    end of the post window (the switch epoch's own jump included); ``step_ratio``: that over
+    the largest such change before the switch (over the reference period when one is set,
+    else the pre window): a filter disturbed by the switch corrects by more than it ever
+    did before."""
+    idx = np.concatenate([[i_sw - 1], post]) if i_sw > 0 else post
+    d = np.diff(e[idx], axis=0)
+    after = np.linalg.norm(wrap_pi(d) if heading else d, axis=1)
+    d = np.diff(e[ref], axis=0)
+    before = np.linalg.norm(wrap_pi(d) if heading else d, axis=1)
+    m["step_after"] = float(np.max(after)) if len(after) else 0.0
+    b = float(np.max(before)) if len(before) else 0.0
+    m["step_ratio"] = m["step_after"] / b if b > 0 else (math.inf if m["step_after"] > 0 else 1.0)
+
+
 def _settling(e: np.ndarray, t: np.ndarray, i_sw: int, post: np.ndarray, m0: np.ndarray, band: float,
               heading: bool) -> float:
     """Time from the switch to the last post-window epoch outside ``band`` around ``m0``."""
@@ -251,6 +273,8 @@ def analyse_switches(
             e = _vectors(errors, q)
             outcome.measures[q] = _measure(e, t, i_prev, i_sw, pre, post, settings.floor(q), q == "heading")
             outcome.measures[q]["ordinary"] = math.nan
+            ref = usable_idx[(t[usable_idx] >= ref_lo) & (t[usable_idx] < ts)] if settings.reference_ns > 0 else pre
+            _steps(outcome.measures[q], e, t, ref, i_sw, post, q == "heading")
             if settings.reference_ns > 0:
                 ordinary = _ordinary(e, t, usable_idx, ref_lo, ts, settings, q == "heading")
                 m = outcome.measures[q]

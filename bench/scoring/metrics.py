@@ -96,6 +96,8 @@ _SWITCH_MEASURES = {
     "jump": "jump across the switch beyond the truth's change",
     "step": "largest epoch-to-epoch change of the error before the switch (the DUT's ordinary updates)",
     "jump_excess": "jump across the switch beyond the largest epoch-to-epoch change before it",
+    "step_after": "largest epoch-to-epoch change of the error in the post window (the switch's included)",
+    "step_ratio": "step_after over the largest epoch-to-epoch change before the switch",
     "amplitude": "peak excursion after the switch from the pre-switch mean",
     "excess": "peak excursion beyond the pre-switch band",
     "band": "the pre-switch band (the pre window's, or the ordinary excursions' when larger)",
@@ -130,7 +132,7 @@ def _catalogue() -> dict[str, MetricSpec]:
             dim, unit = _SWITCH_UNITS[q]
             if m == "settling":
                 dim, unit = "time", "s"
-            elif m == "rms_ratio":
+            elif m in ("rms_ratio", "step_ratio"):
                 dim, unit = "dimensionless", "1"
             name = f"frameswitch.{m}_{q}"
             out[name] = MetricSpec(name, "frameswitch", dim, unit, f"{q}: {text} (max over switches)", ("to",))

@@ -157,6 +157,9 @@ def test_a_switch_on_an_update_epoch_is_judged_beyond_the_updates_own_step(tmp_p
         assert s.metric("frameswitch.step_position", ALL).value == pytest.approx(0.6, abs=1e-6)
         assert s.metric("frameswitch.jump_position", ALL).value == pytest.approx(0.6 + extra, abs=1e-6)
         assert s.metric("frameswitch.jump_excess_position", ALL).value == pytest.approx(excess, abs=1e-6)
+        # the largest step after the switch over the largest before: 1 when nothing was added
+        assert s.metric("frameswitch.step_after_position", ALL).value == pytest.approx(0.6 + extra, abs=1e-6)
+        assert s.metric("frameswitch.step_ratio_position", ALL).value == pytest.approx((0.6 + extra) / 0.6, rel=1e-6)
 
 
 def test_frame_switch_jump_oscillation_settling_ratio(tmp_path, traj, truth):
