@@ -4,7 +4,8 @@
 ICD frames would deliver them: times of validity in whole microseconds, latitude,
 longitude and angles in 1e-7 deg, height in mm, velocity in 0.1 mm/s, sigmas in 0.01 m,
 1 mm/s and 0.01 arcmin. Errors are applied as the scoring measures them: position as an
-ENU offset at the truth (through ECEF), velocity ENU, heading/pitch/roll added. Output
+ENU offset at the truth (through ECEF), velocity ENU, heading/pitch/roll added (on a
+drive over a pole, then taken into the ENU frame at the DUT's position). Output
 defects and corruptions (:mod:`bench.acceptance.corrupt`) are applied last.
 """
 
@@ -23,10 +24,11 @@ from bench.acceptance.corrupt import CORRUPTIONS, corrupt_output
 from bench.acceptance.synthetic_spec import ErrorSignature, SyntheticDut
 from bench.faults.schedule import FaultWindow
 from bench.nav import earth
-from bench.nav.rotation import wrap_2pi
+from bench.nav.rotation import dcm_to_euler, euler_to_dcm, wrap_2pi
 from bench.rng import stream
 from bench.scenario.trajectory import SegmentInfo, Trajectory, truth_at
 from bench.scoring.faults import target_bit
+from bench.scoring.polar import between_frames, is_polar
 from bench.topics import NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE
 
 __all__ = ["DutOutput", "dut_output", "quantize_deg", "switch_times", "frames_at"]
@@ -193,10 +195,17 @@ def dut_output(
     nav["lat"] = quantize_deg(lat)
     nav["lon"] = quantize_deg(lon)
     nav["h"] = _q(h, 1e-3)
-    nav["vel_n"] = _q(tr.vel_n + e_vel, 1e-4)
-    nav["heading"] = quantize_deg(wrap_2pi(tr.euler[:, 0] + e_att[:, 0])) % (2.0 * np.pi)
-    nav["pitch"] = quantize_deg(tr.euler[:, 1] + e_att[:, 1])
-    nav["roll"] = quantize_deg(tr.euler[:, 2] + e_att[:, 2])
+    vel = tr.vel_n + e_vel
+    heading, pitch, roll = tr.euler[:, 0] + e_att[:, 0], tr.euler[:, 1] + e_att[:, 1], tr.euler[:, 2] + e_att[:, 2]
+    if is_polar(tr.lat):
+        # as the scoring measures a polar drive: velocity and attitude in the ENU frame at
+        # the DUT's own position, which near the pole turns far from the truth's
+        vel, C_bn = between_frames(lat, lon, tr.lat, tr.lon, vel, euler_to_dcm(heading, pitch, roll))
+        heading, pitch, roll = dcm_to_euler(C_bn)
+    nav["vel_n"] = _q(vel, 1e-4)
+    nav["heading"] = quantize_deg(wrap_2pi(heading)) % (2.0 * np.pi)
+    nav["pitch"] = quantize_deg(pitch)
+    nav["roll"] = quantize_deg(roll)
     nav["frame"] = frame
     nav["mode"] = spec.mode
     nav["valid"] = 1

@@ -27,6 +27,7 @@ __all__ = [
     "ecef_to_enu",
     "enu_to_ecef",
     "position_rates",
+    "POLAR_LATITUDE",
 ]
 
 #: Semi-major axis, m.
@@ -39,6 +40,10 @@ E2 = F * (2.0 - F)
 B = A * (1.0 - F)
 #: Earth rotation rate, rad/s.
 OMEGA_IE = 7.292115e-5
+#: Latitude (rad) beyond which the bench's truth and scoring work in ECEF and a
+#: wander-azimuth frame rather than in latitude, longitude and ENU heading (singular at
+#: the poles): a drive, or a recorded truth, that passes it is "polar".
+POLAR_LATITUDE = float(np.radians(89.0))
 #: Earth's gravitational constant including the atmosphere, m^3/s^2.
 GM = 3.986004418e14
 

@@ -8,6 +8,17 @@ heading follow by exact polynomial integration; velocity is along the body's for
 Position is integrated on a fixed internal grid (1 kHz by default) with the trapezoidal
 rule and its Euler-Maclaurin end correction (fourth order), and read between grid points
 by cubic Hermite interpolation: the truth is exact to well below a millimetre.
+
+Near a pole latitude and longitude are singular (the longitude rate has 1/cos(lat)), and
+so is an ENU heading held constant (a rhumb line spirals into the pole). A drive whose
+latitude passes :data:`POLAR_LATITUDE` is therefore integrated in ECEF instead, with the
+heading channel taken in a wander-azimuth frame: a local-level frame that does not turn
+about the vertical relative to the Earth, starting as ENU at the start. There a constant
+heading channel is a straight drive along a geodesic (a great circle on a sphere), which
+crosses the pole with no singularity; the ENU heading of the truth follows from the frame
+(it jumps by 180 deg at the pole; exactly at the pole, where north is undefined, it is
+that of the longitude the ECEF position gives). Drives that stay below the limit are
+integrated as before, bit for bit.
 """
 
 from __future__ import annotations
@@ -18,10 +29,15 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.interpolate import PPoly
 
-from bench.scenario._kernels import hermite_position, integrate_profile_position
+from bench.nav import earth
+from bench.nav.rotation import dcm_to_quat, quat_to_dcm
+from bench.scenario._kernels import hermite_position, integrate_profile_ecef, integrate_profile_position
 from bench.scenario.trajectory import Kinematics, SegmentInfo, Trajectory
 
-__all__ = ["Channel", "ProfileTrajectory", "SMOOTHSTEP_PEAK_SLOPE", "smoothstep"]
+__all__ = ["Channel", "ProfileTrajectory", "SMOOTHSTEP_PEAK_SLOPE", "smoothstep", "POLAR_LATITUDE"]
+
+#: Latitude (rad) beyond which a drive is integrated in ECEF with a wander-azimuth heading.
+POLAR_LATITUDE = earth.POLAR_LATITUDE
 
 #: Peak of d/dx of the quintic smoothstep: a ramp of height H over T has peak slope 1.875 H/T.
 SMOOTHSTEP_PEAK_SLOPE = 1.875
@@ -170,28 +186,70 @@ class ProfileTrajectory(Trajectory):
         self._grid = np.empty((n, 3))  # lat, lon, h
         self._grid_rate = np.empty((n, 3))  # their time derivatives
         c = np.ascontiguousarray(self._pp.c[:, :, :6])
-        integrate_profile_position(
-            c,
-            np.ascontiguousarray(self._pp.x),
-            n,
-            1.0 / self.internal_rate_hz,
-            lat0,
-            lon0,
-            h0,
-            self._grid,
-            self._grid_rate,
-        )
+        x = np.ascontiguousarray(self._pp.x)
+        dt = 1.0 / self.internal_rate_hz
+        stop = integrate_profile_position(c, x, n, dt, lat0, lon0, h0, self._grid, self._grid_rate, POLAR_LATITUDE)
+        self.near_pole = stop >= 0
+        if not self.near_pole:
+            return
+        # polar drive: ECEF position and the wander frame w -> e (ENU at the start)
+        self._grid = np.empty((n, 3))
+        self._grid_rate = np.empty((n, 3))
+        self._grid_q = np.empty((n, 4))
+        self._grid_qdot = np.empty((n, 4))
+        r0 = earth.geodetic_to_ecef(lat0, lon0, h0)
+        q0 = dcm_to_quat(earth.C_en(lat0, lon0).T)
+        integrate_profile_ecef(c, x, n, dt, r0, q0, self._grid, self._grid_rate, self._grid_q, self._grid_qdot)
+
+    def _hermite(self, grid: np.ndarray, rate: np.ndarray, t: np.ndarray) -> np.ndarray:
+        out = np.empty((len(t), grid.shape[1]))
+        hermite_position(grid, rate, 1.0 / self.internal_rate_hz, np.ascontiguousarray(t), out)
+        return out
 
     def _position(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        out = np.empty((len(t), 3))
-        hermite_position(self._grid, self._grid_rate, 1.0 / self.internal_rate_hz, np.ascontiguousarray(t), out)
+        out = self._hermite(self._grid, self._grid_rate, t)
+        if self.near_pole:
+            return earth.ecef_to_geodetic(out)
         return out[:, 0], out[:, 1], out[:, 2]
+
+    def _polar_kinematics(self, t: np.ndarray, ch: np.ndarray) -> Kinematics:
+        """Kinematics of a polar drive: channels in the wander frame w, position in ECEF."""
+        lat, lon, h = self._position(t)
+        q = self._hermite(self._grid_q, self._grid_qdot, t)
+        q /= np.linalg.norm(q, axis=1)[:, None]
+        C_wn = earth.C_en(lat, lon) @ quat_to_dcm(q)  # w -> ENU: a turn about the vertical
+        alpha = np.arctan2(C_wn[:, 0, 1], C_wn[:, 1, 1])  # azimuth of w's y axis from north
+        vel_w, acc_w = self._velocity(ch)
+        vel = np.einsum("nij,nj->ni", C_wn, vel_w)
+        acc_w_n = np.einsum("nij,nj->ni", C_wn, acc_w)
+        w_up = earth.transport_rate_n(lat, h, vel)[:, 2]  # ve tan(lat) / (R_N + h): the ENU turn
+        acc = acc_w_n.copy()
+        acc[:, 0] += w_up * vel[:, 1]  # - w_up (up x vel): the ENU components' extra turn
+        acc[:, 1] -= w_up * vel[:, 0]
+        euler = ch[:, [2, 4, 6]].copy()
+        euler[:, 0] += alpha
+        rate = ch[:, [3, 5, 7]].copy()
+        rate[:, 0] += w_up
+        return Kinematics(
+            t=t,
+            lat=lat,
+            lon=lon,
+            h=h,
+            vel_n=vel,
+            acc_n=acc,
+            euler=euler,
+            euler_rate=rate,
+            heading_rate_w=ch[:, 3].copy(),
+            acc_w=acc_w_n,
+        )
 
     # -- Trajectory ----------------------------------------------------------------------
     def kinematics(self, t: np.ndarray) -> Kinematics:
         t = np.asarray(t, dtype=float)
         self.check_times(t)
         ch = self._channels(t)
+        if self.near_pole:
+            return self._polar_kinematics(t, ch)
         vel, acc = self._velocity(ch)
         lat, lon, h = self._position(t)
         return Kinematics(

@@ -20,7 +20,16 @@ import numpy as np
 from bench.nav import earth
 from bench.nav.rotation import euler_rates_to_omega_nb_b, euler_to_dcm, euler_to_quat, wrap_2pi
 
-__all__ = ["Kinematics", "Truth", "Trajectory", "SegmentInfo", "truth_at", "truth_from_kinematics"]
+__all__ = [
+    "Kinematics",
+    "Truth",
+    "Trajectory",
+    "SegmentInfo",
+    "truth_at",
+    "truth_from_kinematics",
+    "inertial_quantities",
+    "level_rates",
+]
 
 
 @dataclass
@@ -35,6 +44,14 @@ class Kinematics:
     acc_n: (N, 3) time derivative of the ENU components of ``vel_n``, m/s^2.
     euler: (N, 3) heading (unwrapped), pitch, roll, rad.
     euler_rate: (N, 3) their time derivatives, rad/s.
+    heading_rate_w: (N,) or None: the heading rate relative to a wander-azimuth frame,
+        ``euler_rate[:, 0] - omega_en_n[:, 2]`` (the turn rate against a parallel-
+        transported direction), rad/s. Given by trajectories that come near a pole, where
+        the ENU heading rate and the transport rate's vertical part (tan(lat)) both grow
+        without bound but their difference stays finite; ``None`` elsewhere.
+    acc_w: (N, 3) or None: ``acc_n + omega_en_n[:, 2] * (up x vel_n)``, the rate of change
+        of the velocity's components in that wander-azimuth frame, shown in ENU, m/s^2;
+        given together with ``heading_rate_w``.
     """
 
     t: np.ndarray
@@ -45,6 +62,8 @@ class Kinematics:
     acc_n: np.ndarray
     euler: np.ndarray
     euler_rate: np.ndarray
+    heading_rate_w: np.ndarray | None = None
+    acc_w: np.ndarray | None = None
 
 
 @dataclass
@@ -117,6 +136,9 @@ class Trajectory(ABC):
 
     #: Length of the trajectory, s.
     duration_s: float
+    #: True when the motion passes :data:`bench.nav.earth.POLAR_LATITUDE`: its kinematics
+    #: then carry the wander-azimuth fields (``heading_rate_w``, ``acc_w``).
+    near_pole: bool = False
 
     @abstractmethod
     def kinematics(self, t: np.ndarray) -> Kinematics:
@@ -173,21 +195,38 @@ def _mtv(C: np.ndarray, v: np.ndarray) -> np.ndarray:
     )
 
 
+def level_rates(k: Kinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(heading rate, transport rate (N, 3), acceleration (N, 3))`` of a local-level frame
+    that turns with the vehicle's position: ENU (``euler_rate[:, 0]``, ``omega_en_n``,
+    ``acc_n``) normally; near a pole the wander-azimuth frame (``heading_rate_w``, the
+    transport rate without its vertical part, ``acc_w``), where nothing has tan(lat).
+    Either set gives the same ``omega_eb_b`` and specific force."""
+    w_en = earth.transport_rate_n(k.lat, k.h, k.vel_n)
+    if k.heading_rate_w is None or k.acc_w is None:
+        return k.euler_rate[:, 0], w_en, k.acc_n
+    w_en[:, 2] = 0.0
+    return k.heading_rate_w, w_en, k.acc_w
+
+
 def inertial_quantities(k: Kinematics) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(C_bn, omega_ib_b, f_b, omega_nb_b)`` from kinematics, the IMU's view of the motion.
 
     ``omega_ib_b = omega_nb_b + C_bn^T (omega_ie_n + omega_en_n)`` and
-    ``f_b = C_bn^T (acc_n + (2 omega_ie_n + omega_en_n) x vel_n - g_n)``.
+    ``f_b = C_bn^T (acc_n + (2 omega_ie_n + omega_en_n) x vel_n - g_n)``; near a pole in
+    the wander-azimuth form of :func:`level_rates`, finite at the pole itself.
     """
     psi, theta, gamma = k.euler[:, 0], k.euler[:, 1], k.euler[:, 2]
     C_bn = euler_to_dcm(psi, theta, gamma)
     omega_nb_b = euler_rates_to_omega_nb_b(
         psi, theta, gamma, k.euler_rate[:, 0], k.euler_rate[:, 1], k.euler_rate[:, 2]
     )
+    psi_dot, w_en, acc = level_rates(k)
+    omega_lb_b = omega_nb_b
+    if k.heading_rate_w is not None:
+        omega_lb_b = euler_rates_to_omega_nb_b(psi, theta, gamma, psi_dot, k.euler_rate[:, 1], k.euler_rate[:, 2])
     w_ie = earth.earth_rate_n(k.lat)
-    w_en = earth.transport_rate_n(k.lat, k.h, k.vel_n)
-    omega_ib_b = omega_nb_b + _mtv(C_bn, w_ie + w_en)
-    f_n = k.acc_n + np.cross(2.0 * w_ie + w_en, k.vel_n)
+    omega_ib_b = omega_lb_b + _mtv(C_bn, w_ie + w_en)
+    f_n = acc + np.cross(2.0 * w_ie + w_en, k.vel_n)
     f_n[:, 2] += earth.gravity(k.lat, k.h)
     f_b = _mtv(C_bn, f_n)
     return C_bn, omega_ib_b, f_b, omega_nb_b

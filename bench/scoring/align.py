@@ -18,6 +18,10 @@ outside the truth's span are not covered and are left out of every metric.
 Errors are DUT minus truth: position as the ECEF difference rotated into the local ENU
 frame at the truth (m), velocity ENU (m/s), heading/pitch/roll differences wrapped to
 [-pi, pi) (rad), and the total attitude error angle on SO(3) (rad).
+
+A truth that passes a pole (latitude beyond :data:`bench.nav.earth.POLAR_LATITUDE`) is
+interpolated in ECEF instead, and the DUT's velocity and attitude are taken into the
+truth's ENU frame through ECEF before the differences (:mod:`bench.scoring.polar`).
 """
 
 from __future__ import annotations
@@ -28,6 +32,9 @@ import numpy as np
 
 from bench.nav import earth
 from bench.nav.rotation import (
+    dcm_to_euler,
+    dcm_to_quat,
+    euler_to_dcm,
     euler_to_quat,
     quat_conj,
     quat_mul,
@@ -36,6 +43,7 @@ from bench.nav.rotation import (
     quat_to_rotvec,
     wrap_pi,
 )
+from bench.scoring.polar import between_frames, is_polar, polar_truth
 
 __all__ = ["AlignedTruth", "interpolate_truth", "NavErrors", "nav_errors", "cumulative_distance"]
 
@@ -46,7 +54,8 @@ class AlignedTruth:
 
     Attributes: ``covered`` (M,) bool; ``lat, lon, h`` (M,) rad, rad, m; ``vel_n`` (M, 3)
     m/s; ``q_bn`` (M, 4); ``euler`` (M, 3) heading [0, 2 pi), pitch, roll rad;
-    ``distance`` (M,) distance driven since the first truth sample, m.
+    ``distance`` (M,) distance driven since the first truth sample, m; ``polar`` True when
+    the truth passes a pole and was interpolated in ECEF (:mod:`bench.scoring.polar`).
     """
 
     covered: np.ndarray
@@ -57,6 +66,7 @@ class AlignedTruth:
     q_bn: np.ndarray
     euler: np.ndarray
     distance: np.ndarray
+    polar: bool = False
 
 
 def cumulative_distance(truth: np.ndarray) -> np.ndarray:
@@ -110,6 +120,11 @@ def interpolate_truth(truth: np.ndarray, t_ns: np.ndarray) -> AlignedTruth:
     last = t_ns == tt[-1]
     dt = dt_ns * 1e-9
 
+    dist_all = cumulative_distance(truth)
+    dist = dist_all[i] + x * (dist_all[i + 1] - dist_all[i])
+    if is_polar(truth["lat"]):
+        return _interpolate_polar(truth, i, x, dt, exact, last, covered, dist, dist_all)
+
     lat_all, h_all, vel_all = truth["lat"], truth["h"], truth["vel_n"]
     lon_all = np.unwrap(truth["lon"])
     rates = np.column_stack(earth.position_rates(lat_all, h_all, vel_all))
@@ -121,8 +136,6 @@ def interpolate_truth(truth: np.ndarray, t_ns: np.ndarray) -> AlignedTruth:
     q = _so3_hermite(truth["q_bn"][i], truth["q_bn"][i + 1], w[i] * dt[:, None], w[i + 1] * dt[:, None], x)
     psi, theta, gamma = quat_to_euler(q)
     euler = np.column_stack([psi, theta, gamma])
-    dist_all = cumulative_distance(truth)
-    dist = dist_all[i] + x * (dist_all[i + 1] - dist_all[i])
 
     # samples hit exactly: use the recorded values untouched
     for sel, j in ((exact, i), (last, np.full_like(i, len(tt) - 1))):
@@ -134,6 +147,38 @@ def interpolate_truth(truth: np.ndarray, t_ns: np.ndarray) -> AlignedTruth:
             dist[sel] = dist_all[j[sel]]
     lon = (pos[:, 1] + np.pi) % (2.0 * np.pi) - np.pi
     return AlignedTruth(covered, pos[:, 0], lon, pos[:, 2], vel, q, euler, dist)
+
+
+def _interpolate_polar(
+    truth: np.ndarray,
+    i: np.ndarray,
+    x: np.ndarray,
+    dt: np.ndarray,
+    exact: np.ndarray,
+    last: np.ndarray,
+    covered: np.ndarray,
+    dist: np.ndarray,
+    dist_all: np.ndarray,
+) -> AlignedTruth:
+    """:func:`interpolate_truth` of a truth that passes a pole: in ECEF, nothing singular."""
+    p = polar_truth(truth)
+    d = dt[:, None]
+    x_e = _hermite(p["x"][i], p["x"][i + 1], p["v"][i] * d, p["v"][i + 1] * d, x)
+    v_e = _hermite(p["v"][i], p["v"][i + 1], p["a"][i] * d, p["a"][i + 1] * d, x)
+    q_be = _so3_hermite(p["q_be"][i], p["q_be"][i + 1], p["w_eb_b"][i] * d, p["w_eb_b"][i + 1] * d, x)
+    lat, lon, h = earth.ecef_to_geodetic(x_e)
+    C_en = earth.C_en(lat, lon)
+    vel = np.einsum("nij,nj->ni", C_en, v_e)
+    q = dcm_to_quat(C_en @ quat_to_dcm(q_be))
+    euler = np.column_stack(quat_to_euler(q))
+    for sel, j in ((exact, i), (last, np.full_like(i, len(truth) - 1))):
+        if np.any(sel):
+            lat[sel], lon[sel], h[sel] = truth["lat"][j[sel]], truth["lon"][j[sel]], truth["h"][j[sel]]
+            vel[sel] = truth["vel_n"][j[sel]]
+            q[sel] = truth["q_bn"][j[sel]]
+            euler[sel] = truth["euler"][j[sel]]
+            dist[sel] = dist_all[j[sel]]
+    return AlignedTruth(covered, lat, lon, h, vel, q, euler, dist, polar=True)
 
 
 @dataclass
@@ -194,15 +239,23 @@ def nav_errors(truth: np.ndarray, nav: np.ndarray) -> NavErrors:
     x_dut = earth.geodetic_to_ecef(d["lat"], d["lon"], d["h"])
     C = earth.C_en(tr.lat, tr.lon)
     pos = np.einsum("nij,nj->ni", C, x_dut - x_true)
-    vel = d["vel_n"] - tr.vel_n
+    if tr.polar:  # velocity and attitude taken into the truth's ENU frame first
+        vel_dut, C_dut = between_frames(
+            tr.lat, tr.lon, d["lat"], d["lon"], d["vel_n"], euler_to_dcm(d["heading"], d["pitch"], d["roll"])
+        )
+        heading, pitch, roll = dcm_to_euler(C_dut)
+        q_dut = dcm_to_quat(C_dut)
+    else:
+        vel_dut, heading, pitch, roll = d["vel_n"], d["heading"], d["pitch"], d["roll"]
+        q_dut = euler_to_quat(d["heading"], d["pitch"], d["roll"])
+    vel = vel_dut - tr.vel_n
     att = np.column_stack(
         [
-            wrap_pi(d["heading"] - tr.euler[:, 0]),
-            wrap_pi(d["pitch"] - tr.euler[:, 1]),
-            wrap_pi(d["roll"] - tr.euler[:, 2]),
+            wrap_pi(heading - tr.euler[:, 0]),
+            wrap_pi(pitch - tr.euler[:, 1]),
+            wrap_pi(roll - tr.euler[:, 2]),
         ]
     )
-    q_dut = euler_to_quat(d["heading"], d["pitch"], d["roll"])
     q_err = quat_mul(q_dut, quat_conj(tr.q_bn))
     att_angle = np.linalg.norm(quat_to_rotvec(q_err), axis=1)
     usable = tr.covered & (d["valid"] != 0)

@@ -278,15 +278,23 @@ class BdsReceiver(SensorModel):
         style[~nofix] = 0
         err = level[:, None] * (self._pos_w.draw(n) + self._pos_m.draw(n)) + offset
         verr = level[:, None] * (self._vel_w.draw(n) + self._vel_m.draw(n)) + vel_offset
-        R_M, R_N = earth.radii(lat)
+        # the error is an ENU offset at the antenna, applied in ECEF (exact, and finite at
+        # the poles); the velocity is reported in the ENU frame of the reported position, as
+        # a receiver rotates its ECEF solution (the frames differ by the position error's
+        # angle, a micro-radian away from the poles)
+        C_ne = np.swapaxes(earth.C_en(lat, lon), -1, -2)
+        fix_lat, fix_lon, fix_h = earth.ecef_to_geodetic(
+            earth.geodetic_to_ecef(lat, lon, h) + np.einsum("nij,nj->ni", C_ne, err)
+        )
+        v_e = np.einsum("nij,nj->ni", C_ne, vel + verr)
         rec = np.empty(n, dtype=BDS_DTYPE)
         rec["t_ns"] = t
         rec["tx_ns"] = t + self.latency_ns
         rec["stamp_ns"] = self.stamps(t)
-        rec["lat"] = lat + err[:, 1] / (R_M + h)
-        rec["lon"] = lon + err[:, 0] / ((R_N + h) * np.cos(lat))
-        rec["h"] = h + err[:, 2]
-        rec["vel_n"] = vel + verr
+        rec["lat"] = fix_lat
+        rec["lon"] = fix_lon
+        rec["h"] = fix_h
+        rec["vel_n"] = np.einsum("nij,nj->ni", earth.C_en(fix_lat, fix_lon), v_e)
         rec["sigma_lon"] = self.sigma_pos[0] * level
         rec["sigma_lat"] = self.sigma_pos[1] * level
         rec["sigma_alt"] = self.sigma_pos[2] * level

@@ -17,7 +17,7 @@ import numpy as np
 
 from bench.nav import earth
 from bench.nav.rotation import euler_rates_to_omega_nb_b, euler_to_dcm
-from bench.scenario.trajectory import Trajectory, Truth
+from bench.scenario.trajectory import Trajectory, Truth, level_rates
 
 __all__ = [
     "mounting_dcm",
@@ -75,7 +75,8 @@ def body_velocity(traj: Trajectory, t_ns: np.ndarray, lever_b: np.ndarray) -> np
     C = euler_to_dcm(psi, theta, gamma)
     v_b = _mtv(C, k.vel_n)
     if np.any(lever_b):
-        w_nb = euler_rates_to_omega_nb_b(psi, theta, gamma, k.euler_rate[:, 0], k.euler_rate[:, 1], k.euler_rate[:, 2])
-        w_eb = w_nb + _mtv(C, earth.transport_rate_n(k.lat, k.h, k.vel_n))
+        psi_dot, w_en, _ = level_rates(k)  # the wander-azimuth form near a pole (no tan(lat))
+        w_nb = euler_rates_to_omega_nb_b(psi, theta, gamma, psi_dot, k.euler_rate[:, 1], k.euler_rate[:, 2])
+        w_eb = w_nb + _mtv(C, w_en)
         v_b = v_b + np.cross(w_eb, lever_b)
     return v_b
