@@ -10,9 +10,10 @@ from pathlib import Path
 
 import pytest
 
-from bench.estimators import seed000_kernel, seed001_kernel
+from bench.estimators import seed000_kernel, seed001_kernel, seed003_kernel
 from bench.estimators.seed000 import Seed000
 from bench.estimators.seed001 import Seed001
+from bench.estimators.seed003 import Seed003
 from bench.faults.schedule import FaultSchedule
 from bench.record.mcap_io import RecordingReader
 from bench.run.engine import run
@@ -27,6 +28,9 @@ CASES = {
     "seed001": (Seed001, seed001_kernel, {"imu": {"grade": "navigation", "rate": "200 Hz"},
                                           "bds": {"model": "seed001_driving", "rate": "1 Hz"},
                                           "odometer": {"model": "typical_wheeled"}}),
+    "seed003": (Seed003, seed003_kernel, {"imu": {"grade": "seed003_vehicle", "rate": "200 Hz"},
+                                          "bds": {"model": "seed003", "rate": "1 Hz"},
+                                          "doppler": {"model": "seed003"}}),
 }
 
 

@@ -103,9 +103,13 @@ def bench_run(case: Path, out: Path, *args: str, ns: str | None = None) -> tuple
     output, results; fails the test on a hang, a traceback or no results."""
     cmd = [*(["ip", "netns", "exec", ns] if ns else []), *BENCH, "run", str(case), "-o", str(out), "-q",
            "--no-plots", *args]
+    # this checkout's bench, in ``bench run`` and the DUT it starts (which inherits the
+    # environment): from the case's folder the venv's editable install would be imported,
+    # which in a git worktree is another checkout's
+    path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH", "")) if p)
     try:
         p = subprocess.run(cmd, capture_output=True, text=True, timeout=HANG_S, cwd=case.parent,
-                           env={**os.environ, "COLUMNS": "200"})
+                           env={**os.environ, "COLUMNS": "200", "PYTHONPATH": path})
     except subprocess.TimeoutExpired as exc:
         pytest.fail(f"bench run {case.name} did not end within {HANG_S:g} s (hangs?): {exc.stdout}")
     text = p.stdout + p.stderr
