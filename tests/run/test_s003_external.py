@@ -114,7 +114,8 @@ def test_s003_external_runs_end_to_end_over_two_ptys_and_udp_multicast(runs):
     assert len(sol) == EPOCHS and np.all(np.diff(sol["t_ns"]) == EPOCH_NS)
     assert sol["mode"][-1] != sol["mode"][0]  # aligned, then navigating with the aids
     verdicts = criteria(results)
-    assert len(verdicts) == 22, verdicts  # the case's 12 and the 10 integrity defaults
+    n_case = len(tomllib.loads(EXTERNAL.read_text())["criterion"])
+    assert n_case == 15 and len(verdicts) == n_case + 10, verdicts  # the case's and the 10 integrity defaults
     for cid, (verdict, _) in verdicts.items():
         assert verdict in ("PASS", "MARGINAL", "FAIL"), (cid, verdict, text)  # judged on its data
     assert verdicts["OUT-MISSING"][0] == "PASS", text
