@@ -8,6 +8,7 @@ then corrupted in memory and judged against the case's own criteria with the def
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 
 import pytest
@@ -37,13 +38,18 @@ WHOLE = {
     "S002_sins_odometer_faults.toml": "drop",
     "S003a_frame_switch_polar.toml": "counter_stuck",
     "S003b_frame_switch_commanded.toml": "out_of_range",
+    "S003c_frame_switch_back.toml": "time_frozen",
+    "S003d_over_the_pole.toml": "bad_crc",
 }
 
 
 def _stand_in(case: TestCase) -> TestCase:
     if case.dut.kind == "synthetic":
         return case.for_variant(case.variants()[0])
-    return dataclasses.replace(case, dut=dataclasses.replace(case.dut, kind="synthetic", synthetic=SyntheticDut()))
+    spec = SyntheticDut()
+    if case.dut.name == "seed003":  # it switches to the grid frame poleward of 88 deg (and on commands)
+        spec = dataclasses.replace(spec, switch_latitude=math.radians(88.0))
+    return dataclasses.replace(case, dut=dataclasses.replace(case.dut, kind="synthetic", synthetic=spec))
 
 
 @pytest.fixture(scope="module")
@@ -71,8 +77,8 @@ def degrade(run: RunData, kind: str, fraction: float = 0.4) -> RunData:
     return dataclasses.replace(run, nav=nav, quality=quality, bad_frames=[*run.bad_frames, *bad])
 
 
-def test_there_are_seven_reference_cases():
-    assert [p.name for p in CASES] == list(WHOLE) and len(CASES) == 7
+def test_there_are_nine_reference_cases():
+    assert [p.name for p in CASES] == list(WHOLE) and len(CASES) == 9
 
 
 @pytest.mark.parametrize("name", [p.name for p in CASES])
