@@ -147,7 +147,7 @@ def test_tables_are_checked_with_file_and_key(scenario_file):
         build_suite(doc, seed=0, file="x.toml")
     with pytest.raises(ConfigError, match="unknown key 'whitenoise'"):
         build_suite({"doppler": {"whitenoise": 1}}, seed=0)
-    with pytest.raises(ConfigError, match="no doppler parameter set 'seed999'; known: seed000, typical"):
+    with pytest.raises(ConfigError, match="no doppler parameter set 'seed999'; known: seed000, seed003, typical"):
         build_suite({"doppler": {"model": "seed999"}}, seed=0)
     with pytest.raises(ConfigError, match="expected one of wheeled, tracked"):
         build_suite({"driver": {"vehicle": "hovercraft"}}, seed=0)
