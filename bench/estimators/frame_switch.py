@@ -190,26 +190,36 @@ def _apply_covariance(P: np.ndarray, B: np.ndarray) -> None:
 
 
 @njit(cache=True)
-def state_to_grid(x: np.ndarray, lat: float, lon: float, h: float, v_G: np.ndarray) -> bool:
-    """``x`` (n,), n >= 15, in place from g states to G states (only 0-8 change).
-    Returns False, ``x`` untouched, where the conversion is not defined."""
+def _convert_state(x: np.ndarray, lat: float, lon: float, h: float, v_G: np.ndarray, inverse: bool) -> bool:
     if not switch_defined(lat, lon):
         return False
     B = np.empty((9, 9))
-    _core(lat, lon, h, v_G, False, B)
+    _core(lat, lon, h, v_G, inverse, B)
     _apply_state(x, B)
     return True
+
+
+@njit(cache=True)
+def state_to_grid(x: np.ndarray, lat: float, lon: float, h: float, v_G: np.ndarray) -> bool:
+    """``x`` (n,), n >= 15, in place from g states to G states (only 0-8 change).
+    Returns False, ``x`` untouched, where the conversion is not defined."""
+    return _convert_state(x, lat, lon, h, v_G, False)
 
 
 @njit(cache=True)
 def state_to_geographic(x: np.ndarray, lat: float, lon: float, h: float, v_G: np.ndarray) -> bool:
     """``x`` (n,), n >= 15, in place from G states to g states (closed-form inverse).
     Returns False, ``x`` untouched, where the conversion is not defined."""
+    return _convert_state(x, lat, lon, h, v_G, True)
+
+
+@njit(cache=True)
+def _convert_covariance(P: np.ndarray, lat: float, lon: float, h: float, v_G: np.ndarray, inverse: bool) -> bool:
     if not switch_defined(lat, lon):
         return False
     B = np.empty((9, 9))
-    _core(lat, lon, h, v_G, True, B)
-    _apply_state(x, B)
+    _core(lat, lon, h, v_G, inverse, B)
+    _apply_covariance(P, B)
     return True
 
 
@@ -218,24 +228,14 @@ def covariance_to_grid(P: np.ndarray, lat: float, lon: float, h: float, v_G: np.
     """``P`` (n, n), n >= 15, in place: ``P <- Phi P Phi^T`` on the core, the cross terms
     of the extra states transformed with it, their own block untouched; kept symmetric.
     Returns False, ``P`` untouched, where the conversion is not defined."""
-    if not switch_defined(lat, lon):
-        return False
-    B = np.empty((9, 9))
-    _core(lat, lon, h, v_G, False, B)
-    _apply_covariance(P, B)
-    return True
+    return _convert_covariance(P, lat, lon, h, v_G, False)
 
 
 @njit(cache=True)
 def covariance_to_geographic(P: np.ndarray, lat: float, lon: float, h: float, v_G: np.ndarray) -> bool:
     """``P`` (n, n), n >= 15, in place: ``P <- Psi P Psi^T`` with the closed-form inverse
     ``Psi`` of Phi. Returns False, ``P`` untouched, where the conversion is not defined."""
-    if not switch_defined(lat, lon):
-        return False
-    B = np.empty((9, 9))
-    _core(lat, lon, h, v_G, True, B)
-    _apply_covariance(P, B)
-    return True
+    return _convert_covariance(P, lat, lon, h, v_G, True)
 
 
 def _refuse(lat: float, lon: float, direction: str) -> ValueError:

@@ -40,7 +40,7 @@ from bench.estimators.fixes import take_fixes
 from bench.estimators.outblocks import OutputBlocks
 from bench.estimators.rest_alignment import RestAlignment, core_covariance
 from bench.estimators.seed001_meas import DDT, DK, MK
-from bench.estimators.settings import period_ns, surveyed_position
+from bench.estimators.settings import period_ns, surveyed_position, vectors
 from bench.units import quantity
 
 __all__ = ["Seed001", "CONFIG_KEYS", "VECTOR_KEYS"]
@@ -97,14 +97,6 @@ _EMPTY_F = np.zeros(0)
 _ODO_COLUMNS = ("rx_ns", "speed", "valid")
 
 
-def _vector(config: Mapping[str, Any], key: str) -> np.ndarray:
-    dim, unit, default = VECTOR_KEYS[key]
-    v = config.get(key, default)
-    if not isinstance(v, (list, tuple)) or len(v) != 3:
-        raise ConfigError(f"expected three values (right, forward, up / E, N, U), found {v!r}", key=f"dut.config.{key}")
-    return np.array([quantity(x, dim, unit, key=f"dut.config.{key}") for x in v], dtype=float)
-
-
 class Seed001(Estimator):
     """BDS / SINS loose integration of seed 001 (module docstring)."""
 
@@ -140,7 +132,7 @@ class Seed001(Estimator):
             if not isinstance(v, bool):
                 raise ConfigError(f"expected true or false, found {v!r}", key=f"dut.config.{k}")
             self.switch[k] = v
-        vec = {k: _vector(config, k) for k in VECTOR_KEYS}
+        vec = vectors(config, VECTOR_KEYS, "right, forward, up / E, N, U")
         self.position = surveyed_position(config)
         c = self.cfg
         if c["coarse_alignment"] >= c["alignment"]:

@@ -43,7 +43,7 @@ from bench.errors import ConfigError
 from bench.estimators import seed002_kernel as K  # noqa: N812 - the kernel layout constants
 from bench.estimators.outblocks import OutputBlocks
 from bench.estimators.rest_alignment import RestAlignment, core_covariance
-from bench.estimators.settings import period_ns, surveyed_position
+from bench.estimators.settings import period_ns, surveyed_position, vectors
 from bench.units import quantity
 
 __all__ = ["Seed002", "CONFIG_KEYS", "VECTOR_KEYS", "DETECTION"]
@@ -104,14 +104,6 @@ def _int_columns(can: Mapping[str, Any], name: str, keys: tuple[str, ...]) -> li
     return [np.ascontiguousarray(msg[k], dtype=np.int64) for k in keys]
 
 
-def _vector(config: Mapping[str, Any], key: str) -> np.ndarray:
-    dim, unit, default = VECTOR_KEYS[key]
-    v = config.get(key, default)
-    if not isinstance(v, (list, tuple)) or len(v) != 3:
-        raise ConfigError(f"expected three values (right, forward, up), found {v!r}", key=f"dut.config.{key}")
-    return np.array([quantity(x, dim, unit, key=f"dut.config.{key}") for x in v], dtype=float)
-
-
 class Seed002(Estimator):
     """SINS/odometer fault-tolerant navigation of seed 002 (module docstring)."""
 
@@ -151,7 +143,7 @@ class Seed002(Estimator):
             if not isinstance(v, bool):
                 raise ConfigError(f"expected true or false, found {v!r}", key=f"dut.config.{key}")
             setattr(self, key, v)
-        vec = {k: _vector(config, k) for k in VECTOR_KEYS}
+        vec = vectors(config, VECTOR_KEYS, "right, forward, up")
         self.position = surveyed_position(config)
         c = self.cfg
         if c["coarse_alignment"] >= c["alignment"]:

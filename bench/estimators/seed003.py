@@ -36,11 +36,12 @@ from bench.config.table import check_keys
 from bench.dut import NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE, DutInputs, Estimator, EstimatorOutput
 from bench.dut.estimator import CanView
 from bench.errors import ConfigError
-from bench.estimators import seed003_kernel as K  # noqa: N812 - the kernel layout constants
+from bench.estimators import seed003_kernel as K  # noqa: N812 - the compiled step
+from bench.estimators import seed003_state as L  # noqa: N812 - the layouts of its state
 from bench.estimators.fixes import FIX_COLS, take_fixes
 from bench.estimators.outblocks import OutputBlocks
 from bench.estimators.rest_alignment import RestAlignment, core_covariance
-from bench.estimators.settings import period_ns, surveyed_position
+from bench.estimators.settings import period_ns, surveyed_position, vectors
 from bench.nav.ecef import from_geographic
 from bench.nav.rotation import euler_to_quat
 from bench.units import quantity
@@ -90,14 +91,6 @@ _EMPTY_F = np.zeros(0)
 _DOP_COLUMNS = ("rx_ns", "speed", "valid")
 
 
-def _vector(config: Mapping[str, Any], key: str) -> np.ndarray:
-    dim, unit, default = VECTOR_KEYS[key]
-    v = config.get(key, default)
-    if not isinstance(v, (list, tuple)) or len(v) != 3:
-        raise ConfigError(f"expected three values, found {v!r}", key=f"dut.config.{key}")
-    return np.array([quantity(x, dim, unit, key=f"dut.config.{key}") for x in v], dtype=float)
-
-
 class Seed003(Estimator):
     """Geographic / grid-frame SINS of seed 003 (module docstring)."""
 
@@ -109,9 +102,9 @@ class Seed003(Estimator):
         self.choice = {k: v[0] for k, v in _CHOICES.items()}
         self.vec = {k: np.array(v[2], dtype=float) for k, v in VECTOR_KEYS.items()}
         self.position: tuple[float, float, float] | None = None
-        self.st = np.zeros(K.ST_SIZE)
-        self.P = np.zeros((K.N_STATES, K.N_STATES))
-        self.prm = np.zeros(K.PRM_SIZE)
+        self.st = np.zeros(L.ST_SIZE)
+        self.P = np.zeros((L.N_STATES, L.N_STATES))
+        self.prm = np.zeros(L.PRM_SIZE)
         self._fixes = np.zeros((0, FIX_COLS))
         self._cmd_t = _EMPTY_I
         self._cmd_code = _EMPTY_I
@@ -140,7 +133,7 @@ class Seed003(Estimator):
                 raise ConfigError(f"expected one of {', '.join(map(repr, allowed))}, found {v!r}",
                                   key=f"dut.config.{k}")
             self.choice[k] = v
-        self.vec = {k: _vector(config, k) for k in VECTOR_KEYS}
+        self.vec = vectors(config, VECTOR_KEYS)
         self.position = surveyed_position(config)
         c = self.cfg
         if c["coarse_alignment"] >= c["alignment"]:
@@ -160,31 +153,31 @@ class Seed003(Estimator):
         from scipy.stats import chi2
 
         p = self.prm
-        p[K.P_NG], p[K.P_NA] = c["gyro_noise"], c["accel_noise"]
+        p[L.P_NG], p[L.P_NA] = c["gyro_noise"], c["accel_noise"]
         tb = max(c["bias_instability_tau"], 1e-3)
-        p[K.P_QG] = c["gyro_bias_instability"] * math.sqrt(2.0 / tb)
-        p[K.P_QA] = c["accel_bias_instability"] * math.sqrt(2.0 / tb)
-        p[K.P_TU], p[K.P_OUT], p[K.P_ZUPT], p[K.P_RP0] = c["time_update_period"], self._out_ns, c["zupt_noise"], \
+        p[L.P_QG] = c["gyro_bias_instability"] * math.sqrt(2.0 / tb)
+        p[L.P_QA] = c["accel_bias_instability"] * math.sqrt(2.0 / tb)
+        p[L.P_TU], p[L.P_OUT], p[L.P_ZUPT], p[L.P_RP0] = c["time_update_period"], self._out_ns, c["zupt_noise"], \
             c["position_sigma"]
-        p[K.P_SWLAT], p[K.P_HYST], p[K.P_GLIM] = c["switch_latitude"], c["switch_hysteresis"], c["geographic_limit"]
-        p[K.P_AUTO] = 1.0 if self.switch["auto_switch"] else 0.0
-        p[K.P_CONV] = 1.0 if self.switch["filter_conversion"] else (0.0 if self.choice["unconverted"] == "restart"
+        p[L.P_SWLAT], p[L.P_HYST], p[L.P_GLIM] = c["switch_latitude"], c["switch_hysteresis"], c["geographic_limit"]
+        p[L.P_AUTO] = 1.0 if self.switch["auto_switch"] else 0.0
+        p[L.P_CONV] = 1.0 if self.switch["filter_conversion"] else (0.0 if self.choice["unconverted"] == "restart"
                                                                      else 2.0)
-        p[K.P_RDOP], p[K.P_RNHC] = c["doppler_noise"], c["nhc_noise"]
-        p[K.P_VELPER] = period_ns(c["velocity_update_period"], "dut.config.velocity_update_period")
-        p[K.P_DOPTO] = c["doppler_timeout"] * 1e9
-        p[K.P_GATE] = chi2.ppf(c["position_gate"], 3) if c["position_gate"] < 1.0 else 0.0
-        p[K.P_AGE], p[K.P_RPOS] = c["aiding_timeout"] * 1e9, c["position_noise_floor"]
+        p[L.P_RDOP], p[L.P_RNHC] = c["doppler_noise"], c["nhc_noise"]
+        p[L.P_VELPER] = period_ns(c["velocity_update_period"], "dut.config.velocity_update_period")
+        p[L.P_DOPTO] = c["doppler_timeout"] * 1e9
+        p[L.P_GATE] = chi2.ppf(c["position_gate"], 3) if c["position_gate"] < 1.0 else 0.0
+        p[L.P_AGE], p[L.P_RPOS] = c["aiding_timeout"] * 1e9, c["position_noise_floor"]
         lvl, hdg = c["initial_level_sigma"], c["initial_heading_sigma"]
-        p[K.P_S0 : K.P_S0 + 9] = [lvl, lvl, hdg, *([c["initial_velocity_sigma"]] * 3),
+        p[L.P_S0 : L.P_S0 + 9] = [lvl, lvl, hdg, *([c["initial_velocity_sigma"]] * 3),
                                   *([c["initial_position_sigma"]] * 3)]
-        p[K.P_VEL] = 1.0 if self.switch["velocity_aid"] else 0.0
+        p[L.P_VEL] = 1.0 if self.switch["velocity_aid"] else 0.0
 
     # -- what tests and scripts read -----------------------------------------------------------
     @property
     def frame(self) -> str:
         """The navigation frame in use: "geographic" or "grid"."""
-        return "grid" if self.st[K.S_FRAME] == K.FRAME_GRID else "geographic"
+        return "grid" if self.st[L.S_FRAME] == L.FRAME_GRID else "geographic"
 
     @property
     def covariance(self) -> np.ndarray:
@@ -194,10 +187,10 @@ class Seed003(Estimator):
     def diagnostics(self) -> dict[str, float]:
         """Counters beyond NAV_QUALITY."""
         st = self.st
-        return {"frame": int(st[K.S_FRAME]), "switches": int(st[K.S_NSWITCH]),
-                "switches_refused": int(st[K.S_NREFUSED]), "fixes_used": int(st[K.S_NBDS]),
-                "fixes_gated": int(st[K.S_NREJ]), "velocity_updates": int(st[K.S_NVEL]),
-                "last_position_nis": float(st[K.S_NIS])}
+        return {"frame": int(st[L.S_FRAME]), "switches": int(st[L.S_NSWITCH]),
+                "switches_refused": int(st[L.S_NREFUSED]), "fixes_used": int(st[L.S_NBDS]),
+                "fixes_gated": int(st[L.S_NREJ]), "velocity_updates": int(st[L.S_NVEL]),
+                "last_position_nis": float(st[L.S_NIS])}
 
     def close(self) -> None:
         """With ``log_diagnostics``: one line on stderr (the DUT log through the harness)."""
@@ -249,8 +242,8 @@ class Seed003(Estimator):
         sol, qual = self._out.take(len(imu))
         k = K.run_step(self.st, self.P, self.prm, imu["dtheta"], imu["dvel"], imu["t_ns"], d_t, d_v, d_ok,
                        self._cmd_t, self._cmd_code, self._fixes, sol, qual)
-        self._fixes = self._fixes[int(self.st[K.S_CONSUMED]) :]
-        nc = int(self.st[K.S_CCONSUMED])
+        self._fixes = self._fixes[int(self.st[L.S_CONSUMED]) :]
+        nc = int(self.st[L.S_CCONSUMED])
         self._cmd_t, self._cmd_code = self._cmd_t[nc:], self._cmd_code[nc:]
         if k == 0:
             return EstimatorOutput()
@@ -267,14 +260,14 @@ class Seed003(Estimator):
         c = self.cfg
         lat, lon, h = self.position  # type: ignore[misc]
         st = self.st
-        st[K.S_SINS : K.S_SINS + 3] = lat, lon, h
-        st[K.S_SINS + 6 : K.S_SINS + 10] = self._rest.attitude(lat)
-        st[K.S_PHASE], st[K.S_TLAST], st[K.S_NEXT_OUT] = 1.0, t_ns, self._rest.next_out_ns
-        st[K.S_ALIGN_END] = round(c["alignment"] * 1e9)
-        st[K.S_P0 : K.S_P0 + 3] = lat, lon, h
-        st[K.S_TNOM] = self._rest.nominal_step_s()
-        st[K.S_LAST_BDS] = st[K.S_LAST_VEL] = -1e18
-        self.P[:, :] = np.diag(core_covariance(K.N_STATES, c, t_ns * 1e-9, lat))
+        st[L.S_SINS : L.S_SINS + 3] = lat, lon, h
+        st[L.S_SINS + 6 : L.S_SINS + 10] = self._rest.attitude(lat)
+        st[L.S_PHASE], st[L.S_TLAST], st[L.S_NEXT_OUT] = 1.0, t_ns, self._rest.next_out_ns
+        st[L.S_ALIGN_END] = round(c["alignment"] * 1e9)
+        st[L.S_P0 : L.S_P0 + 3] = lat, lon, h
+        st[L.S_TNOM] = self._rest.nominal_step_s()
+        st[L.S_LAST_BDS] = st[L.S_LAST_VEL] = -1e18
+        self.P[:, :] = np.diag(core_covariance(L.N_STATES, c, t_ns * 1e-9, lat))
         self._rest.finish()
         self._started = True
 
@@ -291,16 +284,16 @@ class Seed003(Estimator):
         sg[6:10] = euler_to_quat(*self.vec["initial_attitude"])
         st = self.st
         if abs(lat) >= c["switch_latitude"] and self.switch["auto_switch"]:
-            from_geographic(sg, st[K.S_SINS : K.S_SINS + 20])
-            st[K.S_FRAME] = K.FRAME_GRID
+            from_geographic(sg, st[L.S_SINS : L.S_SINS + 20])
+            st[L.S_FRAME] = L.FRAME_GRID
         else:
-            st[K.S_SINS : K.S_SINS + 20] = sg
-        st[K.S_PHASE], st[K.S_TNOM] = 2.0, step
-        st[K.S_TLAST] = float(t[0]) - step * 1e9
-        st[K.S_NEXT_OUT] = float(t[0])
-        st[K.S_NEXT_VEL] = float(t[0]) + self.prm[K.P_VELPER]
-        st[K.S_LAST_BDS] = st[K.S_LAST_VEL] = -1e18
-        diag = np.zeros(K.N_STATES)
+            st[L.S_SINS : L.S_SINS + 20] = sg
+        st[L.S_PHASE], st[L.S_TNOM] = 2.0, step
+        st[L.S_TLAST] = float(t[0]) - step * 1e9
+        st[L.S_NEXT_OUT] = float(t[0])
+        st[L.S_NEXT_VEL] = float(t[0]) + self.prm[L.P_VELPER]
+        st[L.S_LAST_BDS] = st[L.S_LAST_VEL] = -1e18
+        diag = np.zeros(L.N_STATES)
         diag[9:12] = c["gyro_bias"] ** 2
         diag[12:15] = c["accel_bias"] ** 2
         self.P[:, :] = np.diag(diag)

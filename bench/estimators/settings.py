@@ -6,9 +6,12 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-from bench.errors import ConfigError
+import numpy as np
 
-__all__ = ["surveyed_position", "period_ns"]
+from bench.errors import ConfigError
+from bench.units import quantity
+
+__all__ = ["surveyed_position", "period_ns", "vectors"]
 
 
 def surveyed_position(config: Mapping[str, Any]) -> tuple[float, float, float]:
@@ -30,3 +33,18 @@ def period_ns(seconds: float, key: str) -> int:
     if not seconds > 0 or abs(ns - round(ns)) > 1e-3:
         raise ConfigError(f"expected a period of whole nanoseconds, found {seconds:g} s", key=key)
     return round(ns)
+
+
+def vectors(config: Mapping[str, Any], keys: Mapping[str, tuple[str, str, tuple[float, float, float]]],
+            axes: str = "") -> dict[str, np.ndarray]:
+    """Every three-valued key of ``keys`` (key -> (dimension, unit of a bare number, default))
+    from ``config`` as a (3,) array in SI, the key named when one is not three quantities;
+    ``axes`` says in the message which three (e.g. "right, forward, up")."""
+    out = {}
+    for key, (dim, unit, default) in keys.items():
+        v = config.get(key, default)
+        if not isinstance(v, (list, tuple)) or len(v) != 3:
+            what = f" ({axes})" if axes else ""
+            raise ConfigError(f"expected three values{what}, found {v!r}", key=f"dut.config.{key}")
+        out[key] = np.array([quantity(x, dim, unit, key=f"dut.config.{key}") for x in v], dtype=float)
+    return out

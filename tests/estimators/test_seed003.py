@@ -13,6 +13,7 @@ import pytest
 from bench.acceptance.case import load_case
 from bench.errors import ConfigError
 from bench.estimators import seed003_kernel as K  # noqa: N812
+from bench.estimators import seed003_state as L  # noqa: N812
 from bench.estimators.seed003 import Seed003
 from bench.nav import earth
 from bench.nav.ecef import from_geographic
@@ -57,7 +58,7 @@ def _grid_state(lat_deg: float, conversion: bool = True) -> tuple[np.ndarray, np
     sg[3:6] = 0.0, 20.0, 0.0
     sg[6:10] = euler_to_quat(0.3, 0.0, 0.0)
     from_geographic(sg, est.st[0:20])
-    est.st[K.S_FRAME] = K.FRAME_GRID
+    est.st[L.S_FRAME] = L.FRAME_GRID
     est.P[:, :] = np.diag(np.r_[[1e-6] * 3, [0.01] * 3, [100.0] * 3, [1e-14] * 3, [1e-7] * 3])
     return est.st, est.P, est.prm
 
@@ -66,7 +67,7 @@ def test_the_geographic_frame_is_refused_beyond_its_limit_and_the_state_left_alo
     st, P, prm = _grid_state(89.8)  # beyond geographic_limit (89.5 deg)
     before, P0 = st.copy(), P.copy()
     assert not K.switch_frame(st, P, prm, False, 1.0)
-    assert st[K.S_FRAME] == K.FRAME_GRID and st[K.S_NREFUSED] == 1.0 and st[K.S_NSWITCH] == 0.0
+    assert st[L.S_FRAME] == L.FRAME_GRID and st[L.S_NREFUSED] == 1.0 and st[L.S_NSWITCH] == 0.0
     assert np.array_equal(st[0:20], before[0:20]) and np.array_equal(P, P0)
 
 
@@ -74,13 +75,13 @@ def test_the_geographic_frame_is_refused_beyond_its_limit_and_the_state_left_alo
 def test_a_switch_there_and_back_returns_the_navigation_state(conversion):
     st, P, prm = _grid_state(88.5, conversion)
     before = st[0:20].copy()
-    assert K.switch_frame(st, P, prm, False, 1.0) and st[K.S_FRAME] == K.FRAME_GEOGRAPHIC
+    assert K.switch_frame(st, P, prm, False, 1.0) and st[L.S_FRAME] == L.FRAME_GEOGRAPHIC
     assert st[0] == pytest.approx(math.radians(88.5), abs=1e-12)
     assert np.allclose(st[3:6], [0.0, 20.0, 0.0], atol=1e-9)  # ENU velocity
-    assert K.switch_frame(st, P, prm, True, 2.0) and st[K.S_FRAME] == K.FRAME_GRID
+    assert K.switch_frame(st, P, prm, True, 2.0) and st[L.S_FRAME] == L.FRAME_GRID
     assert np.allclose(st[0:6], before[0:6], rtol=0, atol=1e-7)
     assert np.allclose(st[6:10], before[6:10], atol=1e-12)
-    assert st[K.S_NSWITCH] == 2.0
+    assert st[L.S_NSWITCH] == 2.0
     assert np.all(np.linalg.eigvalsh(P) > 0.0)
     if not conversion:  # restarted from the initial sigmas: 10 m, 0.1 m/s, 1' level, 5' heading
         assert P[2, 2] == pytest.approx(math.radians(5.0 / 60.0) ** 2)
