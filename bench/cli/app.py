@@ -39,7 +39,7 @@ import traceback
 from collections.abc import Iterator
 from pathlib import Path
 
-from bench import __version__
+from bench import __version__, shield
 from bench.crashlog import one_line, write_traceback
 from bench.errors import BenchError, ConfigError
 from bench.textsafe import for_terminal
@@ -154,8 +154,9 @@ def _output_folder(args: argparse.Namespace | None) -> Path | None:
 
 
 class _Interrupt:
-    """Signal handler: the first signal raises KeyboardInterrupt, the second is reported
-    and ignored, the third raises again."""
+    """Signal handler: the first signal raises KeyboardInterrupt (held to the end of a
+    :func:`~bench.shield.shielded` section, such as a recording write), the second is
+    reported and ignored, the third raises again at once."""
 
     def __init__(self) -> None:
         self.count = 0
@@ -166,6 +167,8 @@ class _Interrupt:
         if self.count == 2:
             print(f"bench: {name}: still finishing the recording and stopping the DUT; signal once more to abort that",
                   file=sys.stderr)
+            return
+        if self.count == 1 and shield.hold(name):
             return
         raise KeyboardInterrupt(name)
 

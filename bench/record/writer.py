@@ -24,6 +24,7 @@ from bench import __version__
 from bench.errors import RecordingError
 from bench.record.layout import CHUNKS, COLUMNAR, PROFILE, dtype_to_json
 from bench.record.lock import claim
+from bench.shield import shielded
 
 __all__ = ["RecordingWriter"]
 
@@ -67,9 +68,12 @@ class RecordingWriter:
         self._do(self._w.start, profile=PROFILE, library=f"nav-hil-bench/{__version__}")
 
     def _do(self, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
-        """Call the library; an OSError becomes the writer's error (raised once)."""
+        """Call the library; an OSError becomes the writer's error (raised once). A signal
+        does not cut the call (:mod:`bench.shield`): cut while the library compresses the
+        open chunk, it would drop every message of that chunk from the file."""
         try:
-            return fn(*args, **kwargs)
+            with shielded():
+                return fn(*args, **kwargs)
         except OSError as exc:
             self.error = f"recording could not be written: {exc.strerror or exc}"
             raise RecordingError(f"{self.path}: {self.error}") from None

@@ -47,6 +47,7 @@ from bench.run.realtime_plan import RealtimePlan
 from bench.run.spec import DutSpec, LinkSpec
 from bench.run.startup import REPEATED_IDS, advance_alive
 from bench.run.traffic import BENCH_TIME_ID, Traffic
+from bench.shield import shielded
 from bench.textsafe import for_terminal
 from bench.transport.can_link import CanConfig, CanLink, open_can_link
 from bench.transport.can_rx import CanReceiveThread
@@ -114,6 +115,7 @@ class ExternalDut(RealtimeExchange):
         self._rt_clock: Clock | None = None  # real time: the run's clock stamps them
         self._rx: CanReceiveThread | None = None
         self._rx_to: Callable[[CanBatch], None] | None = None
+        self._lingered: list[CanBatch] = []  # taken from the receive thread after the last emission
         self._rt_offset = (-(1 << 62), 0)  # a lower bound of CLOCK_REALTIME minus CLOCK_MONOTONIC, ns, and when
         # real time: bytes a full pty line did not take yet, per emission kind, and since when
         self._held: tuple[bytearray, bytearray, bytearray] = (bytearray(), bytearray(), bytearray())
@@ -265,12 +267,13 @@ class ExternalDut(RealtimeExchange):
             rounds += 1
             if sent is not None:
                 sent(Traffic(frames, SerialBatch.empty(), SerialBatch.empty(), first.events[:0]))
-            got = self.can.drain(timeout=0.1)
-            if len(got):
-                received(got)
-                if self._ready_at_least(got, t_first):
-                    self._flush_lines()
-                    return rounds
+            with shielded():  # drained is recorded, whenever a signal comes
+                got = self.can.drain(timeout=0.1)
+                if len(got):
+                    received(got)
+            if len(got) and self._ready_at_least(got, t_first):
+                self._flush_lines()
+                return rounds
             if time.monotonic() > deadline:
                 self._flush_lines()
                 raise DutError(
@@ -325,9 +328,10 @@ class ExternalDut(RealtimeExchange):
         deadline = time.monotonic() + timeout_s
         n0, odd0 = self.can.peer_frames, self.can.remote + self.can.error_frames  # every frame counts
         while True:
-            got = self.can.drain(timeout=0.02, max_frames=4096)
-            if len(got):
-                received(got)
+            with shielded():  # drained is recorded, whenever a signal comes
+                got = self.can.drain(timeout=0.02, max_frames=4096)
+                if len(got):
+                    received(got)
             n = self.can.peer_frames - n0
             if n > flood:
                 self._flush_lines()

@@ -36,6 +36,7 @@ from bench.errors import DutError, LinkError
 from bench.frames import CanBatch
 from bench.run.realtime_plan import EMIT_CAN, EMIT_GNSS, EMIT_IMU, RealtimePlan, plan_emissions
 from bench.run.traffic import Traffic
+from bench.shield import shielded
 from bench.transport.can_rx import CanReceiveThread
 from bench.wire.can import codec
 
@@ -287,11 +288,12 @@ class RealtimeExchange:
                     self.serial[name].write(bytes(self._held[kind]))
                     self._held[kind].clear()
         deadline = time.monotonic() + linger_s
-        got: list[CanBatch] = []
+        got = self._lingered  # close() hands them over too if a signal ends the wait
         while True:
-            batch = self._rx.take()
-            if len(batch):
-                got.append(batch)
+            with shielded():  # taken is kept
+                batch = self._rx.take()
+                if len(batch):
+                    got.append(batch)
                 sel = np.flatnonzero(batch.can_id == _SOLUTION.frame_id)
                 if sel.size:
                     values, status = _SOLUTION.decode(batch.take(sel))
@@ -309,11 +311,13 @@ class RealtimeExchange:
     def _stop_receiving(self, got: list[CanBatch] | None = None, *, check: bool = True) -> None:
         """Stop the real-time receive thread and hand over what it received (idempotent);
         ``check``: raise :class:`LinkError` if receiving had failed."""
-        rx, self._rx = self._rx, None
-        if rx is None:
-            return
-        frames = CanBatch.concat([*(got or []), rx.stop()])
-        if len(frames) and self._rx_to is not None:
-            self._rx_to(frames)
+        with shielded():  # what was received is recorded, whenever a signal comes
+            rx, self._rx = self._rx, None
+            if rx is None:
+                return
+            frames = CanBatch.concat([*(self._lingered if got is None else got), rx.stop()])
+            self._lingered = []
+            if len(frames) and self._rx_to is not None:
+                self._rx_to(frames)
         if check and rx.error is not None:
             raise LinkError(f"receiving from the DUT failed: {rx.error}") from rx.error

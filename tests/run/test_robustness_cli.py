@@ -23,6 +23,8 @@ from bench.cli.app import run as bench_cli
 from bench.cli.info import describe
 from bench.errors import ConfigError, RecordingError
 from bench.record.mcap_io import RecordingReader
+from bench.shield import depth as shield_depth
+from bench.shield import shielded
 from tests.run.robust_util import (
     alive,
     dut_command,
@@ -59,6 +61,23 @@ def test_sigterm_and_sigint_raise_keyboard_interrupt_once_then_are_reported_then
         with pytest.raises(KeyboardInterrupt):
             signal.raise_signal(signal.SIGINT)  # third: abort
     assert {s: signal.getsignal(s) for s in before} == before
+
+
+def test_a_shielded_section_holds_the_first_signal_to_its_end_and_never_the_third(sigint_default):
+    done = []
+    with interrupts():
+        with pytest.raises(KeyboardInterrupt) as held, shielded():
+            with shielded():
+                signal.raise_signal(signal.SIGTERM)
+                done.append("inner")
+            done.append("outer")  # the outermost section still runs to its end
+        assert done == ["inner", "outer"] and held.value.args == ("SIGTERM",)
+    with interrupts(), pytest.raises(KeyboardInterrupt), shielded():
+        signal.raise_signal(signal.SIGINT)  # held
+        signal.raise_signal(signal.SIGINT)  # reported
+        signal.raise_signal(signal.SIGINT)  # the user insists: at once
+        done.append("not reached")
+    assert done == ["inner", "outer"] and shield_depth() == 0
 
 
 def test_an_ignored_sigint_stays_ignored_as_nohup_asked():
