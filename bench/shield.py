@@ -14,9 +14,6 @@ Only the main thread handles signals, so the state is a plain counter.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from contextlib import contextmanager
-
 __all__ = ["shielded", "hold", "depth"]
 
 _depth = 0
@@ -39,16 +36,27 @@ def hold(name: str) -> bool:
     return True
 
 
-@contextmanager
-def shielded() -> Iterator[None]:
-    """A section that an interrupt does not cut: one that arrives inside it is raised as
-    :class:`KeyboardInterrupt` when the outermost section ends."""
-    global _depth, _held
-    _depth += 1
-    try:
-        yield
-    finally:
+class _Shielded:
+    """The context manager of :func:`shielded` (a class: it wraps every recording write)."""
+
+    __slots__ = ()
+
+    def __enter__(self) -> None:
+        global _depth
+        _depth += 1
+
+    def __exit__(self, *exc: object) -> None:
+        global _depth, _held
         _depth -= 1
         if _depth == 0 and _held is not None:
             name, _held = _held, None
             raise KeyboardInterrupt(name)
+
+
+_SHIELDED = _Shielded()
+
+
+def shielded() -> _Shielded:
+    """A section that an interrupt does not cut: one that arrives inside it is raised as
+    :class:`KeyboardInterrupt` when the outermost section ends."""
+    return _SHIELDED
