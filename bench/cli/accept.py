@@ -3,7 +3,9 @@
 Every test case found (``test_cases/`` by default) is run for each variant and seed
 through its runner, every recording is judged as ``bench score`` would judge it, and
 the results go under the output folder (``reports/`` by default): recordings,
-``results.json``, ``junit.xml``, ``summary.txt``/``summary.md`` and error plots.
+``results.json``, ``junit.xml``, ``summary.txt``/``summary.md``, error plots, and the
+certification report ``report.html`` and ``report.pdf`` (:mod:`bench.cli.report`;
+``--no-report`` leaves it out).
 
 Exit codes: 0 every case PASS or MARGINAL; 1 a case FAILed; 2 a case file is malformed
 (or bad usage); 3 a case could not be judged (ERROR), or a report could not be written.
@@ -19,6 +21,8 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
+import json
+import shlex
 import sys
 import time
 from contextlib import ExitStack
@@ -45,7 +49,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--runs", type=int, help="Monte Carlo runs per case and variant (seeds from the case's first)")
     p.add_argument("--clock", choices=("lockstep", "realtime"), help="override the cases' clock mode")
     p.add_argument("--force", action="store_true", help="overwrite earlier recordings in the output folder")
-    p.add_argument("--no-plots", action="store_true", help="do not draw error plots")
+    p.add_argument("--no-plots", action="store_true", help="do not draw error plots (nor the report's figures)")
+    p.add_argument("--no-report", action="store_true", help="do not write report.html and report.pdf")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     p.set_defaults(handler=_run)
 
@@ -137,6 +142,32 @@ def exit_code(cases) -> int:
     return EXIT_OK
 
 
+def _command(args: argparse.Namespace, paths: list[str], out: Path) -> str:
+    """The command line that runs this suite again (the reproduction command of the report)."""
+    parts = ["bench", "accept", *paths, "-o", str(out)]
+    for s in args.seed or []:
+        parts += ["--seed", str(s)]
+    if args.runs:
+        parts += ["--runs", str(args.runs)]
+    if args.clock:
+        parts += ["--clock", args.clock]
+    return " ".join(shlex.quote(p) for p in parts)
+
+
+def _report(record: Path, out: Path, *, figures: bool, quiet: bool) -> dict[str, Path]:
+    """report.html and report.pdf of the suite just judged (figures from its recordings)."""
+    from bench.report.build import build_report, commands_for, folder_locator
+
+    results = json.loads(record.read_text(encoding="utf-8"))
+    command, rescore = commands_for(results)
+    with progress_bar("report: figures", 1, unit="recordings", enabled=figures and not quiet) as bar:
+        files = build_report(results, out, locate=folder_locator(out), figures=figures, command=command,
+                             rescore_command=rescore, progress=bar)
+    for note in files.figure_notes:
+        print(for_terminal(f"bench accept: report: {note}"), file=sys.stderr)
+    return {"html": files.html, **({"pdf": files.pdf} if files.pdf is not None else {})}
+
+
 def _run(args: argparse.Namespace) -> int:
     from bench.acceptance.suite import SuiteOptions, collect_cases, run_suite
     from bench.paths import reports_dir, test_cases_dir
@@ -157,16 +188,23 @@ def _run(args: argparse.Namespace) -> int:
     when = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     results = run_suite(files, options, _Reporter(len(files), args.quiet))
     elapsed = time.perf_counter() - started
-    run_info = {"started_utc": when, "elapsed_s": round(elapsed, 3), "paths": [str(p) for p in files]}
+    run_info = {"started_utc": when, "elapsed_s": round(elapsed, 3), "paths": [str(p) for p in files],
+                "command": _command(args, paths, out)}
     failures: list[str] = []
     written = write_reports(results, out, run_info, plots=not args.no_plots, failures=failures)
+    if not args.no_report and "json" in written:
+        try:
+            written.update(_report(written["json"], out, figures=not args.no_plots, quiet=args.quiet))
+        except Exception as exc:  # the record is written: the run's verdict stands, the exit code says ERROR
+            failures.append(crash_note("report.html/report.pdf", exc, out))
     try:
         print(text_table(results))
     except Exception as exc:  # the reports are written: say so rather than lose the exit code
         failures.append(crash_note("the summary table", exc, out))
     for note in failures:
         print(for_terminal(f"bench accept: could not write {note}"), file=sys.stderr)
-    names = ", ".join(str(written[k]) for k in ("json", "junit", "summary") if k in written) or "none written"
+    names = ", ".join(str(written[k]) for k in ("json", "junit", "summary", "html", "pdf") if k in written)
+    names = names or "none written"
     print(f"\n{len(results)} case(s) in {elapsed:.1f} s; results: {names}")
     code = exit_code(results)
     return EXIT_ERROR if failures and code in (EXIT_OK, EXIT_FAIL) else code

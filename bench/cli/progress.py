@@ -30,6 +30,8 @@ def progress_bar(
     )
 
     def update(done: float, tot: float) -> None:
+        if round(tot, 3) != bar.total:  # a total known only once the work is planned
+            bar.total = round(tot, 3)
         bar.update(round(min(done, tot), 3) - bar.n)
 
     try:

@@ -1,0 +1,169 @@
+"""What the certification report shows, computed from a results record alone.
+
+:func:`report_model` turns a results record (``results.json``, :mod:`bench.report.results`)
+into the plain data the templates render: the identification, the summary and counts,
+the requirement coverage matrix, and per case its criteria rows, runs and bench-quality
+figures. Every number is the record's, formatted by :func:`fmt_num`; the exact value
+travels beside it (``raw``) so a test, or a reviewer with the record, can check that the
+report shows the record and nothing else. No third-party library here.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from bench.acceptance.verdict import Verdict
+
+__all__ = ["fmt_num", "report_model", "coverage", "VERDICT_ORDER"]
+
+#: Verdicts from best to worst, N/A first (the worst of several is the one shown; see
+#: :mod:`bench.acceptance.verdict`).
+VERDICT_ORDER = tuple(str(v) for v in sorted(Verdict, key=lambda v: v.rank))
+
+
+def fmt_num(v: Any, digits: int = 4) -> str:
+    """A record value for display: ``digits`` significant digits, ``inf`` as ∞, an
+    unmeasured value (null) as an em dash. Integers stay integers."""
+    if v is None:
+        return "—"
+    if isinstance(v, str):
+        return {"inf": "∞", "-inf": "−∞"}.get(v, v)
+    if isinstance(v, bool):
+        return str(v).lower()
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if math.isnan(v):
+            return "—"
+        if v == 0.0:
+            return "0"
+        text = f"{v:.{digits}g}"
+        return text.replace("-", "−") if text.startswith("-") else text
+    return str(v)
+
+
+def _worst(verdicts: Sequence[str]) -> str:
+    known = [v for v in verdicts if v in VERDICT_ORDER]
+    return max(known, key=VERDICT_ORDER.index) if known else "ERROR"
+
+
+def coverage(cases: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """The requirement coverage matrix: per requirement (sorted), the cases that name or
+    judge it with the worst verdict of its criteria there; ``judged`` False (a gap a
+    reviewer must see) when a case names the requirement but no criterion judged it (a
+    criterion that did not apply, N/A, judges nothing)."""
+    rows: dict[str, dict[str, Any]] = {}
+    for case in cases:
+        judged: dict[str, list[str]] = {}
+        for cr in case.get("criteria", []):
+            if cr.get("verdict") == str(Verdict.NA):  # did not apply: judged nothing
+                continue
+            for req in cr.get("requirements", []):
+                judged.setdefault(req, []).append(cr.get("verdict", "ERROR"))
+        for req in dict.fromkeys([*case.get("requirements", []), *judged]):
+            row = rows.setdefault(req, {"requirement": req, "cases": [], "judged": True})
+            verdicts = judged.get(req, [])
+            entry = {"case": case.get("id", "?"), "verdict": _worst(verdicts) if verdicts else None,
+                     "criteria": len(verdicts)}
+            row["cases"].append(entry)
+            if not verdicts:
+                row["judged"] = False
+    for row in rows.values():
+        verdicts = [c["verdict"] for c in row["cases"] if c["verdict"] is not None]
+        row["verdict"] = _worst(verdicts) if verdicts and row["judged"] else "NOT JUDGED"
+    return [rows[k] for k in sorted(rows)]
+
+
+def _criterion_row(cr: Mapping[str, Any]) -> dict[str, Any]:
+    seeds = cr.get("runs", [])
+    return {
+        "id": cr.get("id", "?"),
+        "variant": cr.get("variant") or "",
+        "control": bool(cr.get("control")),
+        "requirements": ", ".join(cr.get("requirements", [])),
+        "metric": cr.get("metric", ""),
+        "window": cr.get("window_text") or cr.get("window") or "",
+        "value": fmt_num(cr.get("value")),
+        "value_raw": cr.get("value"),
+        "unit": cr.get("unit", ""),
+        "limit": cr.get("limit", ""),
+        "margin": fmt_num(cr.get("margin")),
+        "margin_raw": cr.get("margin"),
+        "verdict": cr.get("verdict", "ERROR"),
+        "reason": cr.get("reason", ""),
+        "paper": cr.get("paper") or "",
+        "relative_to": cr.get("relative_to") or "",
+        "must_fail_on": ", ".join(cr.get("must_fail_on", [])),
+        "monte_carlo": cr.get("monte_carlo", ""),
+        "seeds": [{"seed": r.get("seed"), "value": fmt_num(r.get("value")), "value_raw": r.get("value"),
+                   "verdict": r.get("verdict", "")} for r in seeds] if len(seeds) > 1 else [],
+    }
+
+
+def _quality(run: Mapping[str, Any]) -> dict[str, Any]:
+    """Bench-quality facts of one run: lateness, bad frames, integrity (from the run's
+    ``timing`` and ``identity``, whichever the record has)."""
+    ident = run.get("identity") or {}
+    timing = run.get("timing") or ident.get("timing") or {}
+    lateness = {k: fmt_num(timing[k] / 1e3 if isinstance(timing.get(k), int | float) and k.endswith("_ns")
+                           else timing.get(k))
+                for k in ("count", "p50_ns", "p99_ns", "p999_ns", "max_ns") if k in timing}
+    return {
+        "lateness_us": lateness,
+        "bad_frames": ident.get("bad_frames") or {},
+        "integrity": ident.get("integrity") or {},
+    }
+
+
+def _run_row(run: Mapping[str, Any]) -> dict[str, Any]:
+    ident = run.get("identity") or {}
+    return {
+        "recording": run.get("recording", ""),
+        "variant": run.get("variant") or "",
+        "seed": run.get("seed"),
+        "verdict": run.get("verdict", "ERROR"),
+        "sha256": ident.get("sha256", ""),
+        "bench_issues": list(run.get("bench_issues") or []),
+        "dut_issues": list(run.get("dut_issues") or []),
+        "notes": list(run.get("notes") or []),
+        "quality": _quality(run),
+        "identity": ident,
+    }
+
+
+def report_model(results: Mapping[str, Any], *, title: str = "Acceptance report") -> dict[str, Any]:
+    """The report's content from a results record (see the module docstring)."""
+    cases = list(results.get("cases", []))
+    ident = dict(results.get("identification") or {})
+    run_info = dict(results.get("run_info") or {})
+    model_cases = []
+    for case in cases:
+        dut = case.get("dut") or {}
+        model_cases.append({
+            "id": case.get("id", "?"),
+            "title": case.get("title", ""),
+            "file": case.get("file", ""),
+            "verdict": case.get("verdict", "ERROR"),
+            "requirements": list(case.get("requirements", [])),
+            "dut": {"kind": dut.get("kind", ""), "name": dut.get("name") or ""},
+            "errors": list(case.get("errors", [])),
+            "waived": list(case.get("integrity_waived", [])),
+            "criteria": [_criterion_row(c) for c in case.get("criteria", [])],
+            "runs": [_run_row(r) for r in case.get("runs", [])],
+            "figures": [],
+        })
+    seeds = sorted({r["seed"] for c in model_cases for r in c["runs"] if isinstance(r["seed"], int)})
+    return {
+        "title": title,
+        "schema": results.get("schema", ""),
+        "verdict": results.get("verdict", "ERROR"),
+        "counts": dict(results.get("counts", {})),
+        "n_criteria": sum(len(c["criteria"]) for c in model_cases),
+        "identification": ident,
+        "run_info": run_info,
+        "seeds": seeds,
+        "coverage": coverage(cases),
+        "cases": model_cases,
+    }
