@@ -6,7 +6,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install demo test test-busy lint bench clean fmus
+.PHONY: install demo test test-busy lint bench clean fmus sysdeps
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -26,7 +26,17 @@ install: $(STAMP) $(FMU_MANIFEST)
 demo: install
 	$(BIN)/bench accept test_cases/ -o reports --force
 
-test: install
+# Debian packages the tests use: headless Chromium (the report is opened in it) and
+# poppler (the PDF rendered to pages); installed once, with sudo when not root
+SYSPKGS := chromium poppler-utils
+SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+sysdeps:
+	@command -v chromium >/dev/null && command -v pdftoppm >/dev/null || { \
+	  echo "installing the Debian packages the tests use: $(SYSPKGS)"; \
+	  $(SUDO) apt-get update -qq && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq \
+	    --no-install-recommends $(SYSPKGS) >/dev/null; }
+
+test: install sysdeps
 	$(BIN)/ruff check .
 	$(BIN)/lint-imports
 	$(BIN)/python -m pytest -n 2

@@ -4,7 +4,8 @@ Templates and style sheet live in ``bench/report/templates``; the style is inlin
 figures are PNG data URIs, no font or script is loaded from anywhere: the file opens
 from a disk with no network, and WeasyPrint renders the same page to PDF
 (:mod:`bench.report.pdf`). Autoescaping is on: a DUT's name, log line or reason is text,
-never markup.
+never markup, and its control characters are shown as escapes
+(:func:`bench.textsafe.xml_safe`).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from typing import Any
 import jinja2
 
 from bench.report.model import fmt_num
+from bench.textsafe import xml_safe
 
 __all__ = ["render_html", "SETUP_KEYS"]
 
@@ -42,6 +44,14 @@ def _flat(x: Mapping[str, Any]) -> str:
     return ", ".join(f"{k} {fmt_num(v) if not isinstance(v, dict | list) else json.dumps(v)}" for k, v in x.items())
 
 
+def _shown(v: Any) -> Any:
+    """Every text a template shows: characters HTML cannot carry (NUL, ESC, lone
+    surrogates: a crashed DUT's last lines) made visible; markup is escaped after this."""
+    if isinstance(v, str) and not hasattr(v, "__html__"):  # not already markup (the style sheet)
+        return xml_safe(v)
+    return v
+
+
 @cache
 def _env() -> jinja2.Environment:
     env = jinja2.Environment(
@@ -50,6 +60,7 @@ def _env() -> jinja2.Environment:
         undefined=jinja2.ChainableUndefined,
         trim_blocks=True,
         lstrip_blocks=True,
+        finalize=_shown,
     )
     env.filters["num"] = fmt_num
     return env

@@ -1,0 +1,155 @@
+"""The certification report shows the results record and nothing else: every criterion
+value and margin in report.html equals the record's (exactly, beside the shown figure);
+the PDF has the same sections and numbers; DUT text is escaped; ``bench report`` on the
+recordings alone gives the same content as the live run."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+from html.parser import HTMLParser
+from pathlib import Path
+
+import pypdf
+import pytest
+
+from bench.cli.app import run as cli
+from bench.report.model import fmt_num
+from tests.report.suite import HOSTILE_NAME
+
+SECTIONS = ("Identification", "Summary", "Requirement coverage", "Reproduction", "Approval")
+
+
+class _Cells(HTMLParser):
+    """The criteria rows of report.html: per (case, criterion, variant) the value and
+    margin cells, exact (data-) and shown (text); the per-seed cells."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.case = ""
+        self.rows: dict[tuple[str, str, str, str], dict[str, tuple[str, str]]] = {}
+        self.seeds: dict[str, list[tuple[str, str]]] = {}
+        self._row: tuple[str, str, str, str] | None = None
+        self._cell: tuple[str, str] | None = None
+        self._text = ""
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if tag == "section" and "data-case" in a:
+            self.case = a["data-case"]
+        if tag == "tr" and "data-criterion" in a:
+            self._row = (self.case, a["data-criterion"], a["data-variant"], a["data-control"])
+            self.rows[self._row] = {}
+        if tag == "td" and ("data-value" in a or "data-margin" in a):
+            self._cell = ("value", a["data-value"]) if "data-value" in a else ("margin", a["data-margin"])
+            self._text = ""
+
+    def handle_data(self, data):
+        if self._cell is not None:
+            self._text += data
+
+    def handle_endtag(self, tag):
+        if tag == "td" and self._cell is not None:
+            kind, exact = self._cell
+            if self._row is not None and kind not in self.rows[self._row]:
+                self.rows[self._row][kind] = (exact, self._text.strip())
+            elif kind == "value":
+                self.seeds.setdefault(self.case, []).append((exact, self._text.strip()))
+            self._cell = None
+        if tag == "tr":
+            self._row = None
+
+
+def _record(out: Path) -> dict:
+    return json.loads((out / "results.json").read_text())
+
+
+def test_every_criterion_value_and_margin_in_the_html_equals_the_record(suite_out):
+    record = _record(suite_out)
+    cells = _Cells()
+    cells.feed((suite_out / "report.html").read_text())
+    expected = {}
+    for case in record["cases"]:
+        for cr in case["criteria"]:
+            key = (case["id"], cr["id"], cr["variant"] or "", str(bool(cr["control"])).lower())
+            expected[key] = {"value": (json.dumps(cr["value"]), fmt_num(cr["value"])),
+                             "margin": (json.dumps(cr["margin"]), fmt_num(cr["margin"]))}
+    assert len(expected) >= 20 and cells.rows == expected
+    # RPT-A's two seeds: each criterion's value per seed
+    seeds = [(json.dumps(r["value"]), fmt_num(r["value"])) for cr in record["cases"][0]["criteria"]
+             for r in cr["runs"]]
+    assert len(seeds) == 2 * len(record["cases"][0]["criteria"]) and cells.seeds["RPT-A"] == seeds
+
+
+def test_the_report_names_the_verdicts_the_gaps_and_the_dut_text_escaped(suite_out):
+    html = (suite_out / "report.html").read_text()
+    assert "<script" not in html.lower()  # the page has no script, and the DUT's markup is text
+    assert "&lt;script&gt;alert(&#39;dut&#39;)&lt;/script&gt; filter" in html
+    record = _record(suite_out)
+    assert record["verdict"] == "FAIL" and 'data-verdict="FAIL"' in html
+    # R-NEVER is named by RPT-B and judged by nothing: flagged in the coverage matrix
+    row = re.search(r'<tr class="gap"><td>R-NEVER</td>.*?</tr>', html, re.S)
+    assert row is not None and "never judged" in row.group(0) and 'data-verdict="NOT JUDGED"' in row.group(0)
+    assert html.count('<section class="case"') == 2
+    for title in SECTIONS:
+        assert f">{title}<" in html
+
+
+def _pdf_pages(pdf: Path) -> list[str]:
+    return [p.extract_text() for p in pypdf.PdfReader(pdf).pages]
+
+
+def test_the_pdf_has_the_same_sections_and_numbers_and_renders_to_pages(suite_out, tmp_path):
+    pdf = suite_out / "report.pdf"
+    assert pdf.stat().st_size < 10 * 1024 * 1024
+    pages = _pdf_pages(pdf)
+    text = "\n".join(pages)
+    for title in SECTIONS:
+        assert title in text
+    record = _record(suite_out)
+    for case in record["cases"]:
+        start = next(i for i, p in enumerate(pages) if f"{case['id']}: {case['title']}" in p)
+        end = next((i for i in range(start + 1, len(pages)) if any(
+            f"{c['id']}: {c['title']}" in pages[i] for c in record["cases"] if c is not case)), len(pages))
+        case_text = "\n".join(pages[start:end])
+        for cr in case["criteria"]:
+            shown = fmt_num(cr["value"])
+            assert re.search(rf"(?<![\d.]){re.escape(shown)}(?![\d])", case_text), (case["id"], cr["id"], shown)
+    assert HOSTILE_NAME in text  # as text
+    # every page renders (poppler), and none is blank
+    subprocess.run(["pdftoppm", "-r", "30", "-png", str(pdf), str(tmp_path / "p")], check=True)
+    import matplotlib.image as mpimg
+
+    rendered = sorted(tmp_path.glob("p-*.png"))
+    assert len(rendered) == len(pages) >= 4
+    assert all(mpimg.imread(p).std() > 0.01 for p in rendered)
+
+
+def _sections(html: str) -> dict[str, str]:
+    """The report's sections whose content comes from the recordings (summary, cases)."""
+    out = {"summary": re.search(r'<section id="summary">.*?</section>', html, re.S).group(0)}
+    for m in re.finditer(r'<section class="case" id="(case-[^"]+)".*?</section>', html, re.S):
+        out[m.group(1)] = m.group(0)
+    return out
+
+
+def test_bench_report_on_the_recordings_alone_gives_the_live_report(suite_out, tmp_path):
+    live = _sections((suite_out / "report.html").read_text())
+    code = cli(["report", str(suite_out / "recordings"), "-o", str(tmp_path / "again"), "--no-pdf", "-q"])
+    assert code == 0
+    assert _sections((tmp_path / "again" / "report.html").read_text()) == live
+    again = json.loads((tmp_path / "again" / "results.json").read_text())
+    assert again["cases"] == _record(suite_out)["cases"]
+    # from the record, re-judging the recordings beside it
+    assert cli(["report", str(suite_out), "-o", str(tmp_path / "rescored"), "--rescore", "--no-pdf", "-q"]) == 0
+    assert _sections((tmp_path / "rescored" / "report.html").read_text()) == live
+
+
+@pytest.mark.parametrize("bad", ["missing.json", "not_json.json", "no_cases.json", "notes.txt"])
+def test_a_bad_input_is_a_usage_error_naming_it(tmp_path, capsys, bad):
+    (tmp_path / "not_json.json").write_text("{ nope")
+    (tmp_path / "no_cases.json").write_text('{"verdict": "PASS"}')
+    (tmp_path / "notes.txt").write_text("x")
+    assert cli(["report", str(tmp_path / bad), "-o", str(tmp_path / "o"), "-q"]) == 2
+    assert bad in capsys.readouterr().err
