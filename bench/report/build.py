@@ -157,6 +157,8 @@ def build_report(
     notes: list[str] = []
     if figures and locate is not None:
         figs, notes = draw_figures(results, locate, workers=workers, progress=progress)
+        if stage is not None:
+            stage(f"drew {sum(len(f) for f in figs.values())} figures")
     for note in notes:
         case_id = note.split(":", 1)[0]
         for c in model["cases"]:
