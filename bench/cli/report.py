@@ -9,9 +9,9 @@
   (``recordings/<case>/<file>``); with ``--rescore`` those recordings are re-judged first,
   exactly as from recordings.
 
-Exit codes: 0 the report was written (whatever its verdict: ``bench accept`` and
-``bench score`` give the verdict's code), 2 usage (a missing or malformed input, named),
-3 the report could not be written.
+Exit codes as every command's: the report's verdict, 0 PASS (or MARGINAL), 1 FAIL, 3
+ERROR; 2 usage (a missing or malformed input, named); 3 also when the report could not be
+written. The report is written whatever the verdict.
 """
 
 from __future__ import annotations
@@ -92,7 +92,7 @@ def _is_record(p: Path) -> bool:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from bench.cli.app import EXIT_OK
+    from bench.cli.app import EXIT_ERROR, EXIT_FAIL, EXIT_OK
     from bench.cli.progress import progress_bar
     from bench.errors import ConfigError
     from bench.report.build import build_report, commands_for, folder_locator
@@ -142,4 +142,4 @@ def _run(args: argparse.Namespace) -> int:
         print(f"bench report: {note}", file=sys.stderr)
     written = ", ".join(str(p) for p in (files.html, files.pdf) if p is not None)
     print(f"report ({results.get('verdict', '?')}): {written}")
-    return EXIT_OK
+    return {"PASS": EXIT_OK, "MARGINAL": EXIT_OK, "FAIL": EXIT_FAIL}.get(str(results.get("verdict")), EXIT_ERROR)

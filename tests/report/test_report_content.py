@@ -137,12 +137,12 @@ def _sections(html: str) -> dict[str, str]:
 def test_bench_report_on_the_recordings_alone_gives_the_live_report(suite_out, tmp_path):
     live = _sections((suite_out / "report.html").read_text())
     code = cli(["report", str(suite_out / "recordings"), "-o", str(tmp_path / "again"), "--no-pdf", "-q"])
-    assert code == 0
+    assert code == 1  # the verdict's code: RPT-B FAILs
     assert _sections((tmp_path / "again" / "report.html").read_text()) == live
     again = json.loads((tmp_path / "again" / "results.json").read_text())
     assert again["cases"] == _record(suite_out)["cases"]
     # from the record, re-judging the recordings beside it
-    assert cli(["report", str(suite_out), "-o", str(tmp_path / "rescored"), "--rescore", "--no-pdf", "-q"]) == 0
+    assert cli(["report", str(suite_out), "-o", str(tmp_path / "rescored"), "--rescore", "--no-pdf", "-q"]) == 1
     assert _sections((tmp_path / "rescored" / "report.html").read_text()) == live
 
 
