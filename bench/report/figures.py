@@ -28,12 +28,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure as MplFigure
 
 from bench.report.figdata import FigureData, Span, decimate, figure_data, gaps_broken, local_plane, run_criteria
 from bench.scoring.accuracy import accuracy_value, select
@@ -92,13 +90,17 @@ def case_figures(recording: Path, criteria: list[dict], *, title: str = "") -> l
 
 
 # -- shared drawing helpers -------------------------------------------------------------------
-def render(fig: Any) -> bytes:
-    """PNG bytes of a matplotlib figure (closed afterwards)."""
+def subplots(*args: Any, figsize: tuple[float, float], **kw: Any) -> tuple[MplFigure, Any]:
+    """A figure on its own Agg canvas, outside pyplot (nothing global to close or leak)."""
+    fig = MplFigure(figsize=figsize)
+    FigureCanvasAgg(fig)
+    return fig, fig.subplots(*args, **kw)
+
+
+def render(fig: MplFigure) -> bytes:
+    """PNG bytes of a figure."""
     buf = io.BytesIO()
-    try:
-        fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None})
-    finally:
-        plt.close(fig)
+    fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None})
     return buf.getvalue()
 
 
@@ -159,7 +161,7 @@ def trajectory_figure(data: FigureData, criteria: Sequence[Mapping[str, Any]], h
         r = rec[::step] if (len(rec) - 1) % step == 0 else np.concatenate([rec[::step], rec[-1:]])
         return r["t_ns"] * 1e-9, local_plane(r["lat"], r["lon"], r["h"], origin)
 
-    fig, ax = plt.subplots(figsize=(8.0, 7.0))
+    fig, ax = subplots(figsize=(8.0, 7.0))
     parts = []
     tt = xy = None
     if data.has_truth:
@@ -267,7 +269,7 @@ def errors_figure(data: FigureData, criteria: Sequence[Mapping[str, Any]], head:
     names = {"horizontal": "horizontal position error", "vertical": "vertical position error (up)",
              "heading": "heading error", "velocity": "horizontal velocity error"}
     gap = max(1.0, 5.0 * float(np.median(np.diff(t)))) if len(t) > 1 else 1.0
-    fig, axes = plt.subplots(4, 1, figsize=(10.0, 9.0), sharex=True)
+    fig, axes = subplots(4, 1, figsize=(10.0, 9.0), sharex=True)
     spans, switches = data.spans(), data.switch_times_s()
     drawn: list[str] = []
     labelled: set[str] = set()
@@ -340,7 +342,7 @@ def cdf_figure(data: FigureData, criteria: Sequence[Mapping[str, Any]], head: st
     if len(h) > 4000:
         keep = np.unique(np.linspace(0, len(h) - 1, 4000).astype(np.int64))
         h, p = h[keep], p[keep]
-    fig, ax = plt.subplots(figsize=(8.0, 5.0))
+    fig, ax = subplots(figsize=(8.0, 5.0))
     ax.plot(h, p * 100.0, color=STYLE["dut"], lw=1.5, drawstyle="steps-post", label=f"DUT ({len(idx)} epochs)")
     ax.axvline(cep50, color="tab:green", ls="-.", lw=1.3, label=f"CEP50 = {fmt(cep50)} m")
     ax.axvline(cep95, color="tab:purple", ls="-.", lw=1.3, label=f"CEP95 = {fmt(cep95)} m")

@@ -14,13 +14,12 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.ticker import LogLocator, NullLocator
 from numpy.lib.recfunctions import repack_fields
 
 from bench.report.figdata import FigureData
-from bench.report.figures import ARCMIN, STYLE, Figure, fmt, line, margins, mark_switches, render, shade
+from bench.report.figures import ARCMIN, STYLE, Figure, fmt, line, margins, mark_switches, render, shade, subplots
 from bench.scoring.accuracy import select
 from bench.scoring.consistency import CONSISTENCY_QUANTITIES, chi2_bounds, nees_series
 from bench.scoring.data import ScoringError
@@ -71,7 +70,7 @@ def nees_figure(data: FigureData, criteria: Sequence[Mapping[str, Any]], head: s
     conf = data.settings.confidence
     # the columns the NEES reads, packed (nees_series copies the records it matches: 4x faster)
     q = repack_fields(q[["t_ns", "sigma_pos", "sigma_vel", "sigma_att"]])
-    fig, axes = plt.subplots(len(names), 1, figsize=(10.0, 2.6 * len(names) + 0.8), sharex=True, squeeze=False)
+    fig, axes = subplots(len(names), 1, figsize=(10.0, 2.6 * len(names) + 0.8), sharex=True, squeeze=False)
     values: dict[str, float] = {}
     notes = []
     labelled: set[str] = set()
@@ -145,7 +144,7 @@ def switch_figures(data: FigureData, criteria: Sequence[Mapping[str, Any]], head
             ("velocity", "velocity error, m/s", e.vel[u][near], ("east", "north", "up")),
             ("position", "position error, m", e.pos[u][near], ("east", "north", "up")),
         ]
-        fig, axes = plt.subplots(3, 1, figsize=(10.0, 8.0), sharex=True)
+        fig, axes = subplots(3, 1, figsize=(10.0, 8.0), sharex=True)
         values: dict[str, float] = {"t_s": sw.t_s}
         for ax, (q, ylabel, y, comps) in zip(axes, panels, strict=True):
             ax.axvspan(max(sw.t_s - pre_s, sw.t_s - half_s), sw.t_s, color="0.85", lw=0, label="pre-switch window")
@@ -215,7 +214,7 @@ def fault_figure(data: FigureData, criteria: Sequence[Mapping[str, Any]], head: 
     q = q[np.argsort(q["t_ns"], kind="stable")]
     tq = q["t_ns"] * 1e-9
     rows = fa.outcomes[:MAX_FAULT_ROWS]
-    fig, axes = plt.subplots(len(rows), 1, figsize=(10.0, 1.0 + 1.45 * len(rows)), squeeze=False)
+    fig, axes = subplots(len(rows), 1, figsize=(10.0, 1.0 + 1.45 * len(rows)), squeeze=False)
     values: dict[str, float] = {}
     for ax, o in zip(axes[:, 0], rows, strict=True):
         bit = target_bit(o.target)
