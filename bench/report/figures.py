@@ -353,8 +353,14 @@ def cdf_figure(data: FigureData, criteria: Sequence[Mapping[str, Any]], head: st
         hi = (crit.get("limit_si") or {}).get("high")
         if isinstance(hi, (int, float)):
             stat = str(crit["metric"]).rsplit(".", 1)[1].upper()
-            ax.axvline(float(hi), color=STYLE["limit"], ls="--", lw=1.2, label=f"{crit['id']}: {stat} ≤ {fmt(hi)} m")
-            limit_note = f" Red dashed: the limit of {crit['id']} ({crit['metric']})."
+            far = float(hi) > 3.0 * float(h[-1])  # would flatten the curve
+            label = f"{crit['id']}: {stat} ≤ {fmt(hi)} m" + (", off scale" if far else "")
+            if far:
+                ax.plot([], [], color=STYLE["limit"], ls=":", lw=1.2, label=label)
+            else:
+                ax.axvline(float(hi), color=STYLE["limit"], ls="--", lw=1.2, label=label)
+            limit_note = f" Red dashed: the limit of {crit['id']} ({crit['metric']})" + (
+                ", beyond 3 times the largest error: not drawn." if far else ".")
     ax.set_xlabel("horizontal position error, m")
     ax.set_ylabel("epochs at or below, %")
     ax.set_ylim(0, 101)
