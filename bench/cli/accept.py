@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
+import shlex
 import sys
 import time
 from contextlib import ExitStack
@@ -28,7 +29,7 @@ from bench.cli.app import EXIT_ERROR, EXIT_FAIL, EXIT_OK, EXIT_USAGE
 from bench.cli.progress import progress_bar
 from bench.textsafe import for_terminal
 
-__all__ = ["register", "exit_code", "recording_targets", "clear_recordings"]
+__all__ = ["register", "exit_code", "recording_targets", "clear_recordings", "reproduction"]
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -137,6 +138,21 @@ def exit_code(cases) -> int:
     return EXIT_OK
 
 
+def reproduction(args: argparse.Namespace) -> str:
+    """The ``bench accept`` command line that reruns this suite (paths and output folder
+    as given; the options that change what runs, not how it is shown)."""
+    parts = ["bench", "accept", *(args.paths or [])]
+    if args.out:
+        parts += ["-o", str(args.out)]
+    for s in args.seed or []:
+        parts += ["--seed", str(s)]
+    if args.runs is not None:
+        parts += ["--runs", str(args.runs)]
+    if args.clock:
+        parts += ["--clock", args.clock]
+    return shlex.join(parts)
+
+
 def _run(args: argparse.Namespace) -> int:
     from bench.acceptance.suite import SuiteOptions, collect_cases, run_suite
     from bench.paths import reports_dir, test_cases_dir
@@ -157,7 +173,8 @@ def _run(args: argparse.Namespace) -> int:
     when = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     results = run_suite(files, options, _Reporter(len(files), args.quiet))
     elapsed = time.perf_counter() - started
-    run_info = {"started_utc": when, "elapsed_s": round(elapsed, 3), "paths": [str(p) for p in files]}
+    run_info = {"started_utc": when, "elapsed_s": round(elapsed, 3), "paths": [str(p) for p in files],
+                "command": reproduction(args)}
     failures: list[str] = []
     written = write_reports(results, out, run_info, plots=not args.no_plots, failures=failures)
     try:

@@ -224,6 +224,10 @@ def schema_errors(obj: Any, limit: int = 5) -> list[str]:
 
     found = []
     for err in sorted(_validator().iter_errors(obj), key=lambda e: [str(p) for p in e.absolute_path]):
+        if err.context and all(not c.relative_path for c in err.context):  # alternatives for this value
+            why = " / ".join(dict.fromkeys(c.message for c in err.context))
+            found.append(f"{_path(list(err.absolute_path))}: {why}")
+            continue
         best = best_match([err]) if err.context else err
         found.append(f"{_path(list(best.absolute_path))}: {best.message}")
         if len(found) >= limit:
