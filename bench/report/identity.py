@@ -235,8 +235,33 @@ def _links(kind: str, case_doc: Mapping[str, Any], dut_exit: Mapping[str, Any]) 
                 entry["interface"] = can_link.get("interface", entry["interface"])
                 if can_link.get("port") is not None:
                     entry["port"] = can_link["port"]
-        out.append(entry)
+            if name == "can" and entry["interface"] is None:
+                entry["interface"] = "virtual"  # python-can's virtual bus: CanConfig's default
+        out.append(_typed_link(entry))
     return out
+
+
+def _typed_link(entry: dict[str, Any]) -> dict[str, Any]:
+    """A link entry with the schema's types: numbers that are not integers become null,
+    ``fd`` a boolean, names text (a case's odd value never makes the record invalid)."""
+    out = dict(entry)
+    for k in ("bitrate", "data_bitrate", "baud"):
+        v = out[k]
+        out[k] = v if isinstance(v, int) and not isinstance(v, bool) else (None if v is None else _int_or_none(v))
+    out["fd"] = out["fd"] if isinstance(out["fd"], bool) or out["fd"] is None else str(out["fd"]).lower() == "true"
+    for k in ("interface", "talker"):
+        out[k] = None if out[k] is None else str(out[k])
+    for k in ("channel", "port"):
+        v = out[k]
+        out[k] = v if v is None or (isinstance(v, int) and not isinstance(v, bool)) else str(v)
+    return out
+
+
+def _int_or_none(v: Any) -> int | None:
+    try:
+        return int(str(v))
+    except ValueError:
+        return None
 
 
 def _plant(record: Mapping[str, str] | None) -> dict[str, Any] | None:

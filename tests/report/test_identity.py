@@ -139,6 +139,32 @@ def test_real_time_lateness_fmu_hash_and_external_links_from_metadata(tmp_path):
     assert ident["setup"]["clock"] == {"mode": "realtime", "step_ms": 10, "speed": 1}
     assert ident["run"]["seed"] == 7 and ident["run"]["requirements"] == ["A"]
     assert ident["quality"]["integrity"]["status"] == "complete"
+    assert _identity_errors(ident) == []
+
+
+def _identity_errors(ident: dict) -> list[str]:
+    from jsonschema import Draft202012Validator
+
+    from bench.report.results import schema
+
+    v = Draft202012Validator({"$ref": "#/$defs/identity", "$defs": schema()["$defs"]})
+    return [f"{list(e.absolute_path)}: {e.message}" for e in v.iter_errors(ident)]
+
+
+def test_odd_link_values_in_a_case_still_give_a_valid_identity(tmp_path):
+    case = (b'[dut]\nkind = "hardware"\n[dut.links]\n'
+            b'can = { channel = 0, bitrate = "fast", fd = 1 }\nimu = { baud = "9600" }\n')
+    path = tmp_path / "hw.mcap"
+    with RecordingWriter(path, epoch_ns=0) as rec:
+        rec.metadata("run_start", {"kind": "run", "seed": "1", "dut_kind": "hardware"})
+        rec.attach("case/hw.toml", case, "application/toml")
+    ident = run_identity(path)
+    links = {x["name"]: x for x in ident["setup"]["links"]}
+    assert links["can"]["interface"] == "virtual" and links["can"]["channel"] == 0
+    assert links["can"]["bitrate"] is None and links["can"]["fd"] is False
+    assert links["imu"]["baud"] == 9600
+    assert _identity_errors(ident) == []
+    assert _identity_errors(run_identity(tmp_path / "gone.mcap")) == []
 
 
 @pytest.mark.parametrize(("text", "value"), [("10", 10), ("0.5", 0.5), ("1e3", 1000.0), ("x", None), ("nan", None)])
