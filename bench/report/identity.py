@@ -32,6 +32,7 @@ import functools
 import hashlib
 import json
 import platform
+import re
 import tomllib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -148,7 +149,7 @@ def _inputs(attachments: Mapping[str, bytes], md: Mapping[str, Mapping[str, str]
     out = [{"name": name, "role": _role(name), "size": len(data), "sha256": hashlib.sha256(data).hexdigest(),
             "source": "attachment"} for name, data in sorted(attachments.items())]
     plant = md.get("plant", {})
-    if plant.get("fmu_sha256"):
+    if re.fullmatch(r"[0-9a-f]{64}", str(plant.get("fmu_sha256", ""))):  # else it stays in setup.plant only
         out.append({"name": f"fmu/{plant.get('model') or 'plant'}.fmu", "role": "fmu", "size": None,
                     "sha256": plant["fmu_sha256"], "source": "metadata"})
     return out
