@@ -32,7 +32,7 @@ from bench.cli.app import EXIT_ERROR, EXIT_FAIL, EXIT_OK, EXIT_USAGE
 from bench.cli.progress import progress_bar
 from bench.textsafe import for_terminal
 
-__all__ = ["register", "exit_code", "recording_targets", "clear_recordings"]
+__all__ = ["register", "exit_code", "recording_targets", "clear_recordings", "reproduction"]
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -142,16 +142,19 @@ def exit_code(cases) -> int:
     return EXIT_OK
 
 
-def _command(args: argparse.Namespace, paths: list[str], out: Path) -> str:
-    """The command line that runs this suite again (the reproduction command of the report)."""
-    parts = ["bench", "accept", *paths, "-o", str(out)]
+def reproduction(args: argparse.Namespace) -> str:
+    """The ``bench accept`` command line that reruns this suite (paths and output folder
+    as given; the options that change what runs, not how it is shown)."""
+    parts = ["bench", "accept", *(args.paths or [])]
+    if args.out:
+        parts += ["-o", str(args.out)]
     for s in args.seed or []:
         parts += ["--seed", str(s)]
-    if args.runs:
+    if args.runs is not None:
         parts += ["--runs", str(args.runs)]
     if args.clock:
         parts += ["--clock", args.clock]
-    return " ".join(shlex.quote(p) for p in parts)
+    return shlex.join(parts)
 
 
 def _report(record: Path, out: Path, *, figures: bool, quiet: bool) -> dict[str, Path]:
@@ -189,7 +192,7 @@ def _run(args: argparse.Namespace) -> int:
     results = run_suite(files, options, _Reporter(len(files), args.quiet))
     elapsed = time.perf_counter() - started
     run_info = {"started_utc": when, "elapsed_s": round(elapsed, 3), "paths": [str(p) for p in files],
-                "command": _command(args, paths, out)}
+                "command": reproduction(args)}
     failures: list[str] = []
     written = write_reports(results, out, run_info, plots=not args.no_plots, failures=failures)
     if not args.no_report and "json" in written:

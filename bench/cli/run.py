@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import datetime as _dt
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -35,6 +36,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-plots", action="store_true", help="do not draw error plots")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     p.set_defaults(handler=_run)
+
+
+def _reproduction(args: argparse.Namespace) -> str:
+    """The ``bench run`` command line that reruns this case."""
+    parts = ["bench", "run", str(args.case)]
+    if args.out:
+        parts += ["-o", str(args.out)]
+    for s in args.seed or []:
+        parts += ["--seed", str(s)]
+    for flag, value in (("--variant", args.variant), ("--clock", args.clock), ("--speed", args.speed)):
+        if value is not None:
+            parts += [flag, f"{value:g}" if isinstance(value, float) else str(value)]
+    return shlex.join(parts)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -68,7 +82,8 @@ def _run(args: argparse.Namespace) -> int:
     result = run_case(case, options, _Reporter(1, args.quiet))
     elapsed = time.perf_counter() - started
     written = write_reports([result], out, {"started_utc": when, "elapsed_s": round(elapsed, 3),
-                                            "paths": [str(args.case)]}, plots=not args.no_plots)
+                                            "paths": [str(args.case)], "command": _reproduction(args)},
+                            plots=not args.no_plots)
     print(text_table([result]))
     for run in result.runs:
         print(f"  recording: {run.recording}", file=sys.stderr)

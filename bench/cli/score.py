@@ -12,6 +12,7 @@ Exit codes as ``bench accept``: 0 pass, 1 FAIL, 2 usage or malformed case, 3 ERR
 from __future__ import annotations
 
 import argparse
+import shlex
 from pathlib import Path
 
 __all__ = ["register", "score_files"]
@@ -66,7 +67,8 @@ def _run(args: argparse.Namespace) -> int:
                         for k, v in block.items():
                             print(for_terminal(f"  {label:<10} {k:<28} {v}"))
     if args.json:
-        write_json(results_json(results), args.json)
+        command = ["bench", "score", *args.recordings, *(["--case", args.case] if args.case else [])]
+        write_json(results_json(results, command=shlex.join(command)), args.json)
     if args.junit:
         write_junit(results, args.junit)
     return exit_code(results)

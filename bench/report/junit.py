@@ -1,8 +1,21 @@
 """JUnit XML of an acceptance run, for CI systems and test-management tools.
 
 One ``<testsuite>`` per test case; one ``<testcase>`` per criterion and variant
-(``classname`` the case id, ``name`` the criterion id with its variant), carrying the
-requirement ids, metric, value, limit and paper figure as ``<property>`` elements.
+(``classname`` the case id, ``name`` the criterion id with its variant), carrying its
+measurement as ``<property>`` elements named as the results record's criterion keys
+(:mod:`bench.report.results`), in this order:
+
+``requirement`` (one per requirement id), ``metric``, ``window``, ``window_text``,
+``variant``, ``control``, ``comparator``, ``limit`` (text, display unit),
+``limit_si.low``, ``limit_si.high``, ``unit``, ``marginal_band``, ``value`` (display
+unit), ``value_si``, ``margin`` (display unit), ``verdict``, ``reason``, ``paper``,
+``monte_carlo``, then per run (Monte Carlo seed) ``run.<seed>.value`` (display unit)
+and ``run.<seed>.verdict``.
+
+Numbers are written with full precision (``repr``: ``float(value)`` gives back the
+record's number), an infinite one as ``inf``/``-inf``, a missing one as the empty
+string; booleans as ``true``/``false``. The ``<testsuite>`` carries the case's
+``title``, ``verdict``, ``requirement`` ids and, per run, ``recording.<file>.sha256``.
 FAIL is a ``<failure>``, ERROR an ``<error>`` (never a failure); MARGINAL passes with
 a ``verdict = MARGINAL`` property. A case that could not be loaded or run is a
 testcase ``<load>`` with an ``<error>``.
@@ -20,16 +33,38 @@ from pathlib import Path
 
 from bench.acceptance.judge import CaseResult
 from bench.acceptance.verdict import Verdict
+from bench.report.identity import run_identity
 from bench.report.results import criterion_json
 from bench.textsafe import xml_safe
 
-__all__ = ["junit_xml", "write_junit"]
+__all__ = ["junit_xml", "write_junit", "PROPERTIES"]
+
+
+#: The criterion keys written as properties, in order (``requirement`` before, runs after).
+PROPERTIES = ("metric", "window", "window_text", "variant", "control", "comparator", "limit", "limit_si.low",
+              "limit_si.high", "unit", "marginal_band", "value", "value_si", "margin", "verdict", "reason",
+              "paper", "monte_carlo")
 
 
 def _fmt(v: object) -> str:
+    """A message's number: six significant digits."""
     if isinstance(v, float):
         return f"{v:.6g}"
     return "" if v is None else str(v)
+
+
+def _prop(v: object) -> str:
+    """A property's value: full precision, ``true``/``false``, empty for none."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return repr(v)
+    return "" if v is None else str(v)
+
+
+def _flat(j: dict, key: str) -> object:
+    head, _, tail = key.partition(".")
+    return j[head][tail] if tail else j[key]
 
 
 def junit_xml(cases: Sequence[CaseResult], name: str = "bench accept") -> ET.Element:
@@ -43,6 +78,10 @@ def junit_xml(cases: Sequence[CaseResult], name: str = "bench accept") -> ET.Ele
         ET.SubElement(props, "property", name="verdict", value=str(cr.verdict))
         for r in cr.requirements:
             ET.SubElement(props, "property", name="requirement", value=r)
+        for run in cr.runs:
+            sha = (run_identity(run.recording).get("recording") or {}).get("sha256")
+            if sha:
+                ET.SubElement(props, "property", name=f"recording.{Path(run.recording).name}.sha256", value=sha)
         n = {"tests": 0, "failures": 0, "errors": 0, "skipped": 0}
         per = cr.elapsed_s / max(1, len(cr.criteria))
         for res in cr.criteria:
@@ -52,8 +91,11 @@ def junit_xml(cases: Sequence[CaseResult], name: str = "bench accept") -> ET.Ele
             tp = ET.SubElement(tc, "properties")
             for r in res.criterion.requirements:
                 ET.SubElement(tp, "property", name="requirement", value=r)
-            for key in ("metric", "window_text", "limit", "unit", "value", "margin", "paper", "verdict", "monte_carlo"):
-                ET.SubElement(tp, "property", name=key, value=_fmt(j[key]))
+            for key in PROPERTIES:
+                ET.SubElement(tp, "property", name=key, value=_prop(_flat(j, key)))
+            for run in j["runs"]:
+                ET.SubElement(tp, "property", name=f"run.{run['seed']}.value", value=_prop(run["value"]))
+                ET.SubElement(tp, "property", name=f"run.{run['seed']}.verdict", value=_prop(run["verdict"]))
             message = (
                 f"{res.criterion.metric} = {_fmt(j['value'])} {j['unit']} ({j['window']}), "
                 f"limit {j['limit']}: {res.verdict}" + (f" -- {res.aggregate.reason}" if res.aggregate.reason else "")

@@ -1,8 +1,13 @@
 """Results as JSON: the machine-readable record of an acceptance run.
 
-Layout (``results.json`` of ``bench accept``; ``bench score --json``)::
+Layout (``results.json`` of ``bench accept``; ``bench score --json``), described by the
+JSON Schema ``bench/report/schemas/results-1.json`` (published as
+``models/schemas/results-1.json``; ``docs/results.md``)::
 
-    {"schema": "bench.results.v1", "verdict": "PASS", "counts": {...},
+    {"schema": "bench.results.v1", "schema_version": 1, "schema_id": SCHEMA_ID,
+     "verdict": "PASS", "counts": {...},
+     "identification": {"report_id", "recordings", "cases", "seeds", "recorded_by",
+                        "judged_by", "duts", "inputs", "command"},
      "cases": [{"id", "title", "file", "requirements", "verdict", "errors": [...],
                 "integrity_waived": [{"check", "criterion", "reason"}],
                 "criteria": [{"id", "requirements", "metric", "window", "limit",
@@ -11,29 +16,60 @@ Layout (``results.json`` of ``bench accept``; ``bench score --json``)::
                               "must_fail_on", "monte_carlo",
                               "runs": [{"seed", "value", "verdict", "reason"}]}],
                 "runs": [{"recording", "variant", "seed", "verdict",
-                          "bench_issues", "dut_issues", "notes", "timing", "overview"}]}]}
+                          "bench_issues", "dut_issues", "notes", "timing", "criteria",
+                          "overview", "identity"}]}],
+     "run_info": {"started_utc", "generated_utc", "elapsed_s", "paths"}}
 
 A criterion has one entry per variant it judges and one per negative control
 (``"control": true``, the variant it had to FAIL on; its verdict is PASS when it did).
 Values are in the criterion's display unit (``value_si`` holds SI); an infinite value is
 the string ``"inf"``, an unmeasured one ``null``. Times of the run (wall clock) live in
 ``"run_info"`` only, so two judgements of the same recordings give identical ``cases``.
+A run's ``identity`` (:mod:`bench.report.identity`) comes from its recording alone.
+
+:func:`write_json` validates a results record against the schema before writing it
+(:func:`validate_results`): a record that does not validate is a bench bug, raised as
+:class:`ResultsSchemaError` naming the failing path, and nothing is written.
 """
 
 from __future__ import annotations
 
+import datetime as _dt
+import functools
 import json
 import math
 from collections.abc import Sequence
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
 from bench.acceptance.judge import CaseResult, CriterionResult, RunResult
 from bench.acceptance.verdict import Verdict, worst
+from bench.errors import BenchError
+from bench.report.identity import identification, run_identity
 
-__all__ = ["num", "criterion_json", "run_json", "case_json", "results_json", "write_json", "SCHEMA"]
+__all__ = [
+    "num",
+    "criterion_json",
+    "run_json",
+    "case_json",
+    "results_json",
+    "write_json",
+    "validate_results",
+    "schema",
+    "schema_errors",
+    "ResultsSchemaError",
+    "SCHEMA",
+    "SCHEMA_VERSION",
+    "SCHEMA_ID",
+    "SCHEMA_FILE",
+]
 
 SCHEMA = "bench.results.v1"
+SCHEMA_VERSION = 1
+SCHEMA_ID = "urn:nav-hil-bench:schema:results-1"
+#: The schema inside the package (``models/schemas/results-1.json`` links to it).
+SCHEMA_FILE = "schemas/results-1.json"
 
 
 def num(x: float | None) -> float | str | None:
@@ -106,6 +142,7 @@ def run_json(r: RunResult) -> dict[str, Any]:
                 for k, v in {**r.values, **r.raw}.items()
             },
             "overview": r.overview,
+            "identity": run_identity(r.recording),
         }
     )
 
@@ -134,18 +171,84 @@ def counts(cases: Sequence[CaseResult]) -> dict[str, int]:
     return out
 
 
-def results_json(cases: Sequence[CaseResult], run_info: dict[str, Any] | None = None) -> dict[str, Any]:
+def results_json(
+    cases: Sequence[CaseResult], run_info: dict[str, Any] | None = None, *, command: str | None = None
+) -> dict[str, Any]:
+    """The results record of ``cases``. ``command`` (or ``run_info["command"]``, moved from
+    there) is the command line that reproduces it; ``run_info`` gets ``generated_utc``."""
+    info = dict(run_info or {})
+    command = command if command is not None else info.pop("command", None)
+    info.pop("command", None)
+    info.setdefault("generated_utc", _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"))
+    case_docs = [case_json(c) for c in cases]
     return {
         "schema": SCHEMA,
+        "schema_version": SCHEMA_VERSION,
+        "schema_id": SCHEMA_ID,
         "verdict": str(worst(c.verdict for c in cases)) if cases else str(Verdict.ERROR),
         "counts": counts(cases),
-        "cases": [case_json(c) for c in cases],
-        "run_info": _clean(run_info or {}),
+        "identification": identification(case_docs, None if command is None else str(command)),
+        "cases": case_docs,
+        "run_info": _clean(info),
     }
 
 
+class ResultsSchemaError(BenchError):
+    """A results record does not match its schema: a bench bug (never written)."""
+
+
+@functools.cache
+def schema() -> dict[str, Any]:
+    """The results record's JSON Schema (package data)."""
+    return json.loads(resources.files("bench.report").joinpath(SCHEMA_FILE).read_text(encoding="utf-8"))
+
+
+@functools.cache
+def _validator() -> Any:
+    from jsonschema import Draft202012Validator
+
+    Draft202012Validator.check_schema(schema())
+    return Draft202012Validator(schema())
+
+
+def _path(parts: Sequence[Any]) -> str:
+    out = ""
+    for p in parts:
+        out += f"[{p}]" if isinstance(p, int) else (f".{p}" if out else str(p))
+    return out or "(the record)"
+
+
+def schema_errors(obj: Any, limit: int = 5) -> list[str]:
+    """``path: message`` of the first ``limit`` schema violations of ``obj`` (none: [])."""
+    from jsonschema.exceptions import best_match
+
+    found = []
+    for err in sorted(_validator().iter_errors(obj), key=lambda e: [str(p) for p in e.absolute_path]):
+        if err.context and all(not c.relative_path for c in err.context):  # alternatives for this value
+            why = " / ".join(dict.fromkeys(c.message for c in err.context))
+            found.append(f"{_path(list(err.absolute_path))}: {why}")
+            continue
+        best = best_match([err]) if err.context else err
+        found.append(f"{_path(list(best.absolute_path))}: {best.message}")
+        if len(found) >= limit:
+            break
+    return found
+
+
+def validate_results(obj: Any) -> None:
+    """Raise :class:`ResultsSchemaError` naming the failing path(s) when ``obj`` is not
+    a valid results record (``cases[2].criteria[4].value: 'abc' is not valid...``)."""
+    errors = schema_errors(obj)
+    if errors:
+        raise ResultsSchemaError(f"the results record does not match its schema {SCHEMA_ID}: " + "; ".join(errors))
+
+
 def write_json(obj: Any, path: str | Path) -> Path:
+    """Write ``obj`` as strict JSON (a results record is validated first, as written)."""
+    text = json.dumps(obj, indent=1, allow_nan=False) + "\n"
+    if isinstance(obj, dict) and obj.get("schema") == SCHEMA:
+        validate_results(json.loads(text))
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(json.dumps(obj, indent=1, allow_nan=False) + "\n", encoding="utf-8")
+    p.write_text(text, encoding="utf-8")
     return p
