@@ -311,14 +311,21 @@ class Comparison:
         return sum(r.status == status for r in self.rows)
 
     def summary(self) -> dict[str, int]:
+        """Counts: ``regressions`` (criteria and cases), then criteria by status, verdict
+        changes, cases on one side only."""
         return {
+            "regressions": len(self.regressions) + sum(c.regression for c in self.cases),
             "criteria": len(self.rows),
-            "regressions": len(self.regressions),
-            **{s.lower(): self.count(s) for s in (REGRESSION, IMPROVEMENT, SAME, CHANGED, MISSING, NEW)},
+            "worse": self.count(REGRESSION),
+            "better": self.count(IMPROVEMENT),
+            "same": self.count(SAME),
+            "controls_changed": self.count(CHANGED),
+            "missing_in_b": self.count(MISSING),
+            "new_in_b": self.count(NEW),
             "verdict_changes": sum(r.verdict_change is not None for r in self.rows),
             "verdicts_worse": sum(r.verdict_change == "worse" for r in self.rows),
-            "cases_missing": sum(c.status == MISSING for c in self.cases),
-            "cases_new": sum(c.status == NEW for c in self.cases),
+            "cases_missing_in_b": sum(c.status == MISSING for c in self.cases),
+            "cases_new_in_b": sum(c.status == NEW for c in self.cases),
             "case_verdicts_worse": sum(c.verdict_change == "worse" for c in self.cases),
         }
 

@@ -127,11 +127,11 @@ def text_report(cmp: Comparison, changes_only: bool = False, width: int = 40) ->
             what = {MISSING: "missing in B", NEW: "new in B"}.get(c.status, f"case verdict {c.verdict_change}")
             out.append(for_terminal(f"case {c.case}: {what}: {c.verdict_a or '-'} -> {c.verdict_b or '-'}"))
     s = cmp.summary()
-    out += ["", f"{s['criteria']} criteria compared: {s['regression']} worse, {s['improvement']} better, "
-            f"{s['same']} same, {s['changed']} controls changed, {s['missing']} missing in B, {s['new']} new in B; "
-            f"{s['verdict_changes']} verdict changes ({s['verdicts_worse']} worse); cases: {s['cases_missing']} "
-            f"missing in B, {s['cases_new']} new in B",
-            "REGRESSION" if cmp.regressed else "no regression"]
+    out += ["", f"{s['criteria']} criteria: {s['worse']} worse, {s['better']} better, {s['same']} same, "
+            f"{s['controls_changed']} controls changed, {s['missing_in_b']} missing in B, {s['new_in_b']} new in B; "
+            f"{s['verdict_changes']} verdict changes ({s['verdicts_worse']} worse); cases: "
+            f"{s['cases_missing_in_b']} missing in B, {s['cases_new_in_b']} new in B",
+            f"REGRESSION ({s['regressions']})" if cmp.regressed else "no regression"]
     return "\n".join(out)
 
 

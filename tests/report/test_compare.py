@@ -105,7 +105,9 @@ def test_worse_configuration_is_a_regression(runs, capsys, tmp_path):
     assert rows["H3"]["tolerance_source"] == "case"
     assert rows["INTEGRITY-gap"]["status"] == SAME  # the worse bias changes nothing else
     assert "verdict changes:" in out and "worse   T1 H: PASS -> MARGINAL" in out
-    assert out.rstrip().endswith("REGRESSION")
+    assert "case T1: case verdict worse: PASS -> MARGINAL" in out
+    assert out.rstrip().splitlines()[-1] == "REGRESSION (3)"  # H, H2 and the case verdict PASS -> MARGINAL
+    assert json.loads((tmp_path / "compare.json").read_text())["summary"]["regressions"] == 3
 
 
 def test_better_configuration_is_an_improvement(runs, capsys, tmp_path):
