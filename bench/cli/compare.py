@@ -125,8 +125,8 @@ def parse_tolerances(tol: list[str], tol_rel: list[str], a: Record, b: Record) -
 
 
 def _run(args: argparse.Namespace) -> int:
-    from bench.report.compare import DEFAULT_FLOOR, DEFAULT_REL_TOL, compare, load_record, to_json
-    from bench.report.compare_view import text_report, write_html
+    from bench.report.compare import DEFAULT_FLOOR, DEFAULT_REL_TOL, compare, load_record
+    from bench.report.compare_view import text_report, to_json, write_html
     from bench.report.results import write_json
 
     a, b = load_record(args.a), load_record(args.b)

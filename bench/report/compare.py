@@ -28,23 +28,20 @@ absolute and a relative part the larger applies. Unknown fields of a record are 
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
-from bench.acceptance.criteria import COMPARATORS
 from bench.acceptance.verdict import Verdict
 from bench.errors import ConfigError
-from bench.report.results import num
+from bench.report.compare_record import Key, Record, load_record, value_of
 from bench.units import to_unit
 
 __all__ = [
     "SCHEMA",
     "DEFAULT_REL_TOL",
     "DEFAULT_FLOOR",
-    "Record",
+    "Record",  # with load_record, from bench.report.compare_record
     "Tolerance",
     "Row",
     "CaseRow",
@@ -56,92 +53,11 @@ __all__ = [
     "compare",
 ]
 
+
 SCHEMA = "bench.compare.v1"
 DEFAULT_REL_TOL = 0.05
 DEFAULT_FLOOR = 0.01
 REGRESSION, IMPROVEMENT, SAME, CHANGED, MISSING, NEW = "REGRESSION", "IMPROVEMENT", "SAME", "CHANGED", "MISSING", "NEW"
-
-Key = tuple[str, str, str | None, bool]  # case id, criterion id, variant, control
-
-
-@dataclass(frozen=True)
-class Record:
-    """A checked results record: its file, the raw JSON, the cases and criteria by key."""
-
-    path: str
-    data: dict[str, Any]
-    cases: dict[str, dict[str, Any]]
-    criteria: dict[Key, dict[str, Any]]
-
-
-def _value(x: Any) -> float | None:
-    if x is None:
-        return None
-    if x == "inf":
-        return math.inf
-    if x == "-inf":
-        return -math.inf
-    return float(x)
-
-
-def _is_value(x: Any) -> bool:
-    return x is None or x in ("inf", "-inf") or (isinstance(x, int | float) and not isinstance(x, bool))
-
-
-def _check(ok: bool, path: str, key: str, expected: str, found: Any) -> None:
-    if not ok:
-        shown = repr(found) if len(repr(found)) < 60 else repr(found)[:57] + "..."
-        raise ConfigError(f"not a results record: expected {expected}, found {shown}", file=path, key=key)
-
-
-def load_record(path: str | Path) -> Record:
-    """Read and check a results record, or the ``results.json`` in folder ``path``.
-
-    Raises :class:`OSError` for an unreadable file and :class:`ConfigError` naming the file
-    and the field for anything that is not a results record."""
-    p = Path(path)
-    if p.is_dir():
-        p = p / "results.json"
-    name = str(p)
-    text = p.read_text(encoding="utf-8", errors="replace")
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ConfigError(f"not a results record: not JSON ({exc})", file=name) from None
-    _check(isinstance(data, dict), name, "", "a JSON object", type(data).__name__)
-    schema = data.get("schema")
-    _check(isinstance(schema, str) and schema.startswith("bench.results"), name, "schema",
-           "'bench.results.v1'", schema)
-    _check(isinstance(data.get("cases"), list), name, "cases", "an array of cases", data.get("cases"))
-    cases: dict[str, dict[str, Any]] = {}
-    criteria: dict[Key, dict[str, Any]] = {}
-    for i, case in enumerate(data["cases"]):
-        at = f"cases[{i}]"
-        _check(isinstance(case, dict), name, at, "an object", case)
-        _check(isinstance(case.get("id"), str), name, f"{at}.id", "a case id", case.get("id"))
-        _check(isinstance(case.get("verdict"), str), name, f"{at}.verdict", "a verdict", case.get("verdict"))
-        _check(case["id"] not in cases, name, f"{at}.id", "a unique case id", case["id"])
-        _check(isinstance(case.get("criteria"), list), name, f"{at}.criteria", "an array", case.get("criteria"))
-        cases[case["id"]] = case
-        for j, c in enumerate(case["criteria"]):
-            ct = f"{at}.criteria[{j}]"
-            _check(isinstance(c, dict), name, ct, "an object", c)
-            for k, ok, what in (
-                ("id", isinstance(c.get("id"), str), "a criterion id"),
-                ("comparator", c.get("comparator") in COMPARATORS, f"one of {', '.join(COMPARATORS)}"),
-                ("value", _is_value(c.get("value")), "a number, 'inf' or null"),
-                ("verdict", isinstance(c.get("verdict"), str), "a verdict"),
-                ("unit", isinstance(c.get("unit"), str), "a unit"),
-                ("limit_si", isinstance(c.get("limit_si"), dict)
-                 and all(_is_value(c["limit_si"].get(s)) for s in ("low", "high")), "{low, high}"),
-                ("variant", c.get("variant") is None or isinstance(c.get("variant"), str), "a variant or null"),
-            ):
-                _check(ok, name, f"{ct}.{k}", what, c.get(k))
-            key = (case["id"], c["id"], c.get("variant"), bool(c.get("control")))
-            _check(key not in criteria, name, f"{ct}.id", "a unique (criterion, variant, control)", c["id"])
-            criteria[key] = c
-    return Record(name, data, cases, criteria)
-
 
 # -- direction and tolerance ---------------------------------------------------------------
 def _limits(c: dict[str, Any]) -> tuple[float | None, float | None]:
@@ -149,7 +65,7 @@ def _limits(c: dict[str, Any]) -> tuple[float | None, float | None]:
     lim, unit = c["limit_si"], c["unit"]
     out = []
     for s in ("low", "high"):
-        x = _value(lim.get(s))
+        x = value_of(lim.get(s))
         out.append(None if x is None else float(to_unit(x, unit)) if math.isfinite(x) else x)
     return out[0], out[1]
 
@@ -341,7 +257,7 @@ def _case_tolerance(ca: dict[str, Any] | None, cb: dict[str, Any] | None) -> Tol
     for c in (cb, ca):
         if c is None:
             continue
-        absolute, relative = _value(c.get("compare_tolerance")), _value(c.get("compare_tolerance_relative"))
+        absolute, relative = value_of(c.get("compare_tolerance")), value_of(c.get("compare_tolerance_relative"))
         if absolute is not None or relative is not None:
             return Tolerance(absolute, relative, "case")
     return None
@@ -352,8 +268,8 @@ def _row(key: Key, ca: dict[str, Any] | None, cb: dict[str, Any] | None, tol: To
     assert c is not None
     comparator = c["comparator"]
     low, high = _limits(c)
-    a = None if ca is None else _value(ca["value"])
-    b = None if cb is None else _value(cb["value"])
+    a = None if ca is None else value_of(ca["value"])
+    b = None if cb is None else value_of(cb["value"])
     delta = rel = tolerance = None
     if a is not None and b is not None:
         delta = 0.0 if a == b else b - a
@@ -412,26 +328,3 @@ def compare(
     settings = {"rel_tol": rel_tol, "floor": floor,
                 "tolerances": {k: {"absolute": v.absolute, "relative": v.relative} for k, v in tolerances.items()}}
     return Comparison(a, b, rows, cases, settings)
-
-
-def to_json(cmp: Comparison) -> dict[str, Any]:
-    """The comparison as JSON (``compare.json``): infinities as strings, as in results."""
-    from bench.report.compare_view import identification
-
-    def side(r: Record) -> dict[str, Any]:
-        return {"path": r.path, "verdict": r.data.get("verdict"), "counts": r.data.get("counts"),
-                "identification": dict(identification(r))}
-
-    def clean(d: dict[str, Any]) -> dict[str, Any]:
-        return {k: num(v) if isinstance(v, float) else v for k, v in d.items()}
-
-    return {
-        "schema": SCHEMA,
-        "regression": cmp.regressed,
-        "a": side(cmp.a),
-        "b": side(cmp.b),
-        "settings": cmp.settings,
-        "summary": cmp.summary(),
-        "cases": [clean(vars(c)) for c in cmp.cases],
-        "criteria": [clean(vars(r)) | {"regression": r.regression} for r in cmp.rows],
-    }

@@ -12,10 +12,11 @@ import math
 from pathlib import Path
 from typing import Any
 
-from bench.report.compare import MISSING, NEW, SAME, Comparison, Record, Row
+from bench.report.compare import MISSING, NEW, SAME, SCHEMA, Comparison, Record, Row
+from bench.report.results import num
 from bench.textsafe import for_terminal
 
-__all__ = ["identification", "fmt", "text_report", "html_report", "write_html"]
+__all__ = ["identification", "fmt", "text_report", "to_json", "html_report", "write_html"]
 
 #: Keys of a record's ``identification`` shown at the top (others are in compare.json).
 _SKIP = ("sha256", "inputs", "files", "seeds", "hash")
@@ -133,6 +134,27 @@ def text_report(cmp: Comparison, changes_only: bool = False, width: int = 40) ->
             f"{s['cases_missing_in_b']} missing in B, {s['cases_new_in_b']} new in B",
             f"REGRESSION ({s['regressions']})" if cmp.regressed else "no regression"]
     return "\n".join(out)
+
+
+def to_json(cmp: Comparison) -> dict[str, Any]:
+    """The comparison as JSON (``compare.json``): infinities as strings, as in results."""
+    def side(r: Record) -> dict[str, Any]:
+        return {"path": r.path, "verdict": r.data.get("verdict"), "counts": r.data.get("counts"),
+                "identification": dict(identification(r))}
+
+    def clean(d: dict[str, Any]) -> dict[str, Any]:
+        return {k: num(v) if isinstance(v, float) else v for k, v in d.items()}
+
+    return {
+        "schema": SCHEMA,
+        "regression": cmp.regressed,
+        "a": side(cmp.a),
+        "b": side(cmp.b),
+        "settings": cmp.settings,
+        "summary": cmp.summary(),
+        "cases": [clean(vars(c)) for c in cmp.cases],
+        "criteria": [clean(vars(r)) | {"regression": r.regression} for r in cmp.rows],
+    }
 
 
 def html_report(cmp: Comparison) -> str:
