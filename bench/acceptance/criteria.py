@@ -178,6 +178,8 @@ class Criterion:
     must_fail_on: tuple[str, ...] = ()
     options: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)
     monte_carlo: MonteCarlo = field(default_factory=MonteCarlo)
+    compare_tolerance: float | None = None  # SI, for ``bench compare``
+    compare_tolerance_relative: float | None = None  # a fraction of the earlier value
 
     def __post_init__(self) -> None:
         if not isinstance(self.limit, Limit):
@@ -186,10 +188,11 @@ class Criterion:
             raise ConfigError(f"expected a MonteCarlo, found {self.monte_carlo!r}", key="monte_carlo")
         if self.marginal is not None and self.marginal_relative is not None:
             raise ConfigError("give either 'marginal' or 'marginal_relative', not both", key="marginal")
-        for name in ("marginal", "marginal_relative"):
+        for name in ("marginal", "marginal_relative", "compare_tolerance", "compare_tolerance_relative"):
             band = getattr(self, name)
             if band is not None and not (_finite(band) and band >= 0.0):
-                raise ConfigError(f"expected a finite non-negative band, found {band!r}", key=name)
+                what = "band" if name.startswith("marginal") else "tolerance"
+                raise ConfigError(f"expected a finite non-negative {what}, found {band!r}", key=name)
         if self.monte_carlo.mode == "percentile" and self.limit.comparator == "in_range":
             raise ConfigError(
                 "a percentile bound applies to at_most, at_least or within, not in_range", key="monte_carlo.percentile"

@@ -278,6 +278,12 @@ def _criterion(
         else:
             options[opt] = t.str(opt, choices=OPTION_CHOICES[opt])
     mc = _monte_carlo(t.table("monte_carlo"), comp)
+    tol = None
+    if t.has("compare_tolerance"):  # bench compare: an absolute tolerance, in the metric's units
+        tol = _limit_value(t, "compare_tolerance", t.raw("compare_tolerance"), dimension, lim_unit)
+        if tol < 0:
+            raise t.error("compare_tolerance", "expected a non-negative tolerance")
+    tol_rel = t.quantity("compare_tolerance_relative", "dimensionless", "1", nonnegative=True)
     paper = t.str("paper", "")
     description = t.str("description", "")
     t.finish()
@@ -300,6 +306,8 @@ def _criterion(
         must_fail_on=controls,
         options=options,
         monte_carlo=mc,
+        compare_tolerance=tol,
+        compare_tolerance_relative=tol_rel,
     )
 
 

@@ -14,6 +14,7 @@ JSON Schema ``bench/report/schemas/results-1.json`` (published as
                               "unit", "value", "margin", "verdict", "reason",
                               "paper", "variant", "relative_to", "control",
                               "must_fail_on", "monte_carlo",
+                              "compare_tolerance", "compare_tolerance_relative",
                               "runs": [{"seed", "value", "verdict", "reason"}]}],
                 "runs": [{"recording", "variant", "seed", "verdict",
                           "bench_issues", "dut_issues", "notes", "timing", "criteria",
@@ -119,6 +120,8 @@ def criterion_json(cr: CriterionResult) -> dict[str, Any]:
         "control": cr.control,
         "must_fail_on": list(c.must_fail_on),
         "monte_carlo": c.monte_carlo.text(),
+        "compare_tolerance": None if c.compare_tolerance is None else num(c.display(c.compare_tolerance)),
+        "compare_tolerance_relative": num(c.compare_tolerance_relative),
         "runs": [
             {"seed": r.seed, "value": num(c.display(r.value)), "verdict": str(r.verdict), "reason": r.reason}
             for r in cr.runs

@@ -1,0 +1,243 @@
+"""``bench compare`` shown: a text table for terminals and a self-contained HTML page.
+
+Everything from a record (DUT names, reasons, identification) is DUT- or user-provided
+text: the text table passes it through :func:`~bench.textsafe.for_terminal`, the HTML
+page through a Jinja2 template with autoescaping on (and the same control-character
+filter), so a ``<script>`` in a DUT name is shown, never run.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+from bench.report.compare import MISSING, NEW, SAME, SCHEMA, Comparison, Record, Row
+from bench.report.results import num
+from bench.textsafe import for_terminal
+
+__all__ = ["identification", "fmt", "text_report", "to_json", "html_report", "write_html"]
+
+#: Keys of a record's ``identification`` shown at the top (others are in compare.json).
+_SKIP = ("sha256", "inputs", "files", "seeds", "hash")
+
+
+def _flat(obj: Any, prefix: str = "") -> list[tuple[str, str]]:
+    if isinstance(obj, dict):
+        out = []
+        for k, v in obj.items():
+            if any(s in str(k).lower() for s in _SKIP):
+                continue
+            out.extend(_flat(v, f"{prefix}{k}."))
+        return out
+    if isinstance(obj, list):
+        return [] if not obj or isinstance(obj[0], dict | list) else [(prefix.rstrip("."), ", ".join(map(str, obj)))]
+    return [] if obj is None else [(prefix.rstrip("."), str(obj))]
+
+
+def identification(r: Record, limit: int = 12) -> list[tuple[str, str]]:
+    """What the record says about itself: its file, the ``identification`` block if any
+    (scalars, no hashes), the start time, the suite verdict and the DUTs of its cases."""
+    out = [("results", r.path)]
+    out.extend(_flat(r.data.get("identification") or {})[:limit])
+    info = r.data.get("run_info")
+    if isinstance(info, dict) and info.get("started_utc"):
+        out.append(("started", str(info["started_utc"])))
+    out.append(("verdict", str(r.data.get("verdict", "?"))))
+    duts = []
+    for c in r.cases.values():
+        d = c.get("dut")
+        if isinstance(d, dict):
+            name = " ".join(str(d[k]) for k in ("kind", "name") if d.get(k))
+            if name and name not in duts:
+                duts.append(name)
+    if duts:
+        out.append(("DUT", ", ".join(duts)))
+    return out
+
+
+def fmt(x: float | None, signed: bool = False) -> str:
+    """A value for a table: 4 significant digits, ``inf``, ``n/a`` for unmeasured."""
+    if x is None:
+        return "n/a"
+    if math.isinf(x):
+        return ("+" if signed and x > 0 else "") + ("inf" if x > 0 else "-inf")
+    return f"{x:+.4g}" if signed else f"{x:.4g}"
+
+
+def _rel(x: float | None) -> str:
+    return "" if x is None else f"{100 * x:+.1f} %"
+
+
+def _verdicts(r: Row) -> str:
+    if r.verdict_change is None:
+        return r.verdict_b or r.verdict_a or ""
+    return f"{r.verdict_a} -> {r.verdict_b}"
+
+
+def _status(r: Row) -> str:
+    if r.status == SAME and r.verdict_change == "worse":
+        return "REGRESSION (verdict)"
+    return r.status
+
+
+HEADER = ("case", "variant", "criterion", "unit", "A", "B", "delta", "rel", "tol", "status", "verdict")
+
+
+def _cells(r: Row) -> tuple[str, ...]:
+    variant = (r.variant or "") + (" (control)" if r.control else "")
+    unit = "" if r.unit == "1" else r.unit
+    tol = "" if r.tolerance is None else fmt(r.tolerance) + ("" if r.tolerance_source == "default" else " *")
+    return (r.case, variant, r.criterion, unit, fmt(r.a) if r.status != NEW else "-",
+            fmt(r.b) if r.status != MISSING else "-", fmt(r.delta, True) if r.delta is not None else "",
+            _rel(r.relative_delta), tol, _status(r), _verdicts(r))
+
+
+def _clip(s: str, n: int) -> str:
+    return s if len(s) <= n else s[: n - 1] + "…"
+
+
+def _table(rows: list[tuple[str, ...]], width: int) -> list[str]:
+    rows = [tuple(_clip(for_terminal(c), width) for c in r) for r in rows]
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    lines = []
+    for k, r in enumerate(rows):
+        lines.append("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip())
+        if k == 0:
+            lines.append("  ".join("-" * w for w in widths))
+    return lines
+
+
+def text_report(cmp: Comparison, changes_only: bool = False, width: int = 40) -> str:
+    """The comparison for a terminal: identification, the criteria table (every row, or
+    only those that changed), verdict changes, cases on one side only, a summary line."""
+    out = []
+    ia, ib = identification(cmp.a), identification(cmp.b)
+    for label, ident in (("A", ia), ("B", ib)):
+        out.append(f"{label}: " + "; ".join(for_terminal(f"{k} {v}") for k, v in ident))
+    shown = [r for r in cmp.rows if not changes_only or r.status != SAME or r.verdict_change]
+    out += ["", *_table([HEADER, *map(_cells, shown)], width)] if shown else ["", "(no criterion changed)"]
+    out.append("(tol: the tolerance applied, display unit; * from the case or the command line)")
+    changed = [r for r in cmp.rows if r.verdict_change]
+    if changed:
+        out += ["", "verdict changes:"]
+        out += [for_terminal(f"  {r.verdict_change:<7} {r.label}: {r.verdict_a} -> {r.verdict_b}"
+                             + (f" ({r.reason_b})" if r.reason_b else "")) for r in changed]
+    for c in cmp.cases:
+        if c.status != SAME or c.verdict_change:
+            what = {MISSING: "missing in B", NEW: "new in B"}.get(c.status, f"case verdict {c.verdict_change}")
+            out.append(for_terminal(f"case {c.case}: {what}: {c.verdict_a or '-'} -> {c.verdict_b or '-'}"))
+    s = cmp.summary()
+    out += ["", f"{s['criteria']} criteria: {s['worse']} worse, {s['better']} better, {s['same']} same, "
+            f"{s['controls_changed']} controls changed, {s['missing_in_b']} missing in B, {s['new_in_b']} new in B; "
+            f"{s['verdict_changes']} verdict changes ({s['verdicts_worse']} worse); cases: "
+            f"{s['cases_missing_in_b']} missing in B, {s['cases_new_in_b']} new in B",
+            f"REGRESSION ({s['regressions']})" if cmp.regressed else "no regression"]
+    return "\n".join(out)
+
+
+def to_json(cmp: Comparison) -> dict[str, Any]:
+    """The comparison as JSON (``compare.json``): infinities as strings, as in results."""
+    def side(r: Record) -> dict[str, Any]:
+        return {"path": r.path, "verdict": r.data.get("verdict"), "counts": r.data.get("counts"),
+                "identification": dict(identification(r))}
+
+    def clean(d: dict[str, Any]) -> dict[str, Any]:
+        return {k: num(v) if isinstance(v, float) else v for k, v in d.items()}
+
+    return {
+        "schema": SCHEMA,
+        "regression": cmp.regressed,
+        "a": side(cmp.a),
+        "b": side(cmp.b),
+        "settings": cmp.settings,
+        "summary": cmp.summary(),
+        "cases": [clean(vars(c)) for c in cmp.cases],
+        "criteria": [clean(vars(r)) | {"regression": r.regression} for r in cmp.rows],
+    }
+
+
+def html_report(cmp: Comparison) -> str:
+    """The comparison as one self-contained HTML page (no scripts, no external files)."""
+    import jinja2
+
+    env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True)
+    env.filters["safe_text"] = lambda s: for_terminal("" if s is None else s, keep="\n\t")
+    template = env.from_string(TEMPLATE)
+    return template.render(
+        cmp=cmp,
+        ident=[("A", identification(cmp.a)), ("B", identification(cmp.b))],
+        summary=cmp.summary(),
+        rows=[(r, _cells(r)) for r in cmp.rows],
+        changed=[r for r in cmp.rows if r.verdict_change],
+        cases=[c for c in cmp.cases if c.status != SAME or c.verdict_change],
+        header=HEADER,
+    )
+
+
+def write_html(cmp: Comparison, path: str | Path) -> Path:
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_text(html_report(cmp), encoding="utf-8")
+    return p
+
+
+TEMPLATE = """<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8">
+<title>bench compare: {{ 'REGRESSION' if cmp.regressed else 'no regression' }}</title>
+<style>
+body { font-family: sans-serif; margin: 1.5em; color: #222; }
+table { border-collapse: collapse; margin: 0.5em 0 1.5em; font-size: 0.9em; }
+th, td { border: 1px solid #ccc; padding: 0.2em 0.5em; text-align: left; vertical-align: top; }
+th { background: #eee; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; }
+tr.REGRESSION, tr.MISSING, tr.worse { background: #fdd; }
+tr.IMPROVEMENT { background: #dfd; }
+tr.NEW, tr.CHANGED, tr.changed { background: #ffd; }
+.verdict { font-size: 1.4em; font-weight: bold; }
+.bad { color: #b00; } .good { color: #070; }
+</style></head>
+<body>
+<h1>bench compare</h1>
+<p class="verdict {{ 'bad' if cmp.regressed else 'good' }}">{{ 'REGRESSION' if cmp.regressed else 'no regression' }}</p>
+<h2>Identification</h2>
+<table><tr><th>A (reference)</th><th>B (compared)</th></tr><tr>
+{% for side, items in ident %}
+<td><dl>{% for k, v in items %}<dt>{{ k | safe_text }}</dt><dd>{{ v | safe_text }}</dd>{% endfor %}</dl></td>
+{% endfor %}
+</tr></table>
+<h2>Summary</h2>
+<table>{% for k, v in summary.items() %}
+<tr><th>{{ k | replace('_', ' ') }}</th><td class="num">{{ v }}</td></tr>{% endfor %}</table>
+<p>Tolerances: relative {{ '%.4g' % (100 * cmp.settings.rel_tol) }} % of A by default, at least
+{{ '%.4g' % (100 * cmp.settings.floor) }} % of the limit; a tolerance marked * is the case's or the command line's.</p>
+{% if changed %}
+<h2>Verdict changes</h2>
+<table><tr><th>criterion</th><th>change</th><th>A</th><th>B</th><th>reason in B</th></tr>
+{% for r in changed %}
+<tr class="{{ r.verdict_change }}"><td>{{ r.label | safe_text }}</td><td>{{ r.verdict_change }}</td>
+<td>{{ r.verdict_a }}</td><td>{{ r.verdict_b }}</td><td>{{ r.reason_b | safe_text }}</td></tr>
+{% endfor %}
+</table>
+{% endif %}
+{% if cases %}
+<h2>Cases</h2>
+<table><tr><th>case</th><th>status</th><th>A</th><th>B</th><th>DUT A</th><th>DUT B</th></tr>
+{% for c in cases %}
+<tr class="{{ c.status }} {{ c.verdict_change or '' }}"><td>{{ c.case | safe_text }}</td>
+<td>{{ c.status }}{% if c.verdict_change %} (verdict {{ c.verdict_change }}){% endif %}</td>
+<td>{{ c.verdict_a or '-' }}</td><td>{{ c.verdict_b or '-' }}</td>
+<td>{{ c.dut_a | safe_text }}</td><td>{{ c.dut_b | safe_text }}</td></tr>
+{% endfor %}
+</table>
+{% endif %}
+<h2>Criteria</h2>
+<table><tr>{% for h in header %}<th>{{ h }}</th>{% endfor %}<th>reason (A / B)</th></tr>
+{% for r, cells in rows %}
+<tr class="{{ r.status }} {{ r.verdict_change or '' }}">{% for c in cells %}
+<td{% if loop.index in (5, 6, 7, 8, 9) %} class="num"{% endif %}>{{ c | safe_text }}</td>{% endfor %}
+<td>{{ r.reason_a | safe_text }}{% if r.reason_a or r.reason_b %} / {% endif %}{{ r.reason_b | safe_text }}</td></tr>
+{% endfor %}
+</table>
+</body></html>
+"""
