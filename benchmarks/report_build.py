@@ -27,6 +27,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("reports", nargs="?", default="reports")
     ap.add_argument("--workers", type=int)
+    ap.add_argument("--all-variants", action="store_true", help="figures of every variant (as bench report)")
     args = ap.parse_args()
     root = Path(args.reports)
     results = json.loads((root / "results.json").read_text())
@@ -35,7 +36,8 @@ def main() -> None:
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         command, rescore = commands_for(results)
-        files = build_report(results, tmp, locate=folder_locator(root), workers=args.workers, command=command,
+        files = build_report(results, tmp, locate=folder_locator(root), workers=args.workers,
+                             per_variant=args.all_variants, command=command,
                              rescore_command=rescore, stage=lambda s: marks.append((s, time.perf_counter())))
         total = time.perf_counter() - t0
         html_s = files.html.stat().st_size
@@ -43,7 +45,8 @@ def main() -> None:
         pages = len(pypdf.PdfReader(files.pdf).pages) if files.pdf else 0
     t_fig = next((t for s, t in marks if s.startswith("drew")), t0)
     t_html = next(t for s, t in marks if s.startswith("wrote"))
-    print(f"suite {root}: {len(results['cases'])} cases, {n_runs} runs; figures of one run per case and variant")
+    which = "one run per case" + (" and variant" if args.all_variants else "")
+    print(f"suite {root}: {len(results['cases'])} cases, {n_runs} runs; figures of {which}")
     for note in files.figure_notes:
         print(f"  note: {note}")
     print(f"figures             : {t_fig - t0:6.1f} s   ({next((s for s, _ in marks if s.startswith('drew')), '')})")

@@ -41,6 +41,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-pdf", action="store_true", help="write the HTML page only")
     p.add_argument("--no-figures", action="store_true", help="no figures (no recording is read for them)")
     p.add_argument("--title", default="Acceptance report", help="the report's title")
+    p.add_argument("--all-variants", action="store_true",
+                   help="figures of every variant's worst run (default: of the case's worst run only)")
     p.add_argument("--workers", type=int, help="processes drawing figures (default: the CPU count)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     p.set_defaults(handler=_run)
@@ -135,6 +137,7 @@ def _run(args: argparse.Namespace) -> int:
     with progress_bar("report: figures", 1, unit="recordings", enabled=not (args.quiet or args.no_figures)) as bar:
         files = build_report(
             results, out, locate=locate, pdf=not args.no_pdf, figures=not args.no_figures, workers=args.workers,
+            per_variant=args.all_variants,
             command=command, rescore_command=rescore if records else argv, title=args.title, progress=bar,
             stage=stage,
         )

@@ -2,10 +2,11 @@
 record and the recordings it names.
 
 The content is the record's (:mod:`bench.report.model`); the figures are drawn from one
-representative recording per case and variant (its worst run, then its lowest seed:
-:func:`representative_runs`) by :func:`bench.report.figures.case_figures`, in worker
-processes (drawing is the slow part). A recording that cannot be drawn leaves a note in
-the report instead of its figures, never a missing report.
+representative recording per case (its worst run, then its first variant, then its lowest
+seed), or per case and variant when asked (:func:`representative_runs`), by
+:func:`bench.report.figures.case_figures` in worker processes (drawing is the slow
+part). A recording that cannot be drawn leaves a note in the report instead of its
+figures, never a missing report.
 """
 
 from __future__ import annotations
@@ -37,16 +38,24 @@ class ReportFiles:
     figure_notes: list[str]
 
 
-def representative_runs(case: Mapping[str, Any]) -> list[Mapping[str, Any]]:
-    """One run per variant of ``case``: the worst verdict, then the lowest seed."""
-    best: dict[str, Mapping[str, Any]] = {}
-    for run in case.get("runs", []):
-        key = run.get("variant") or ""
-        rank = (-VERDICT_ORDER.index(run.get("verdict", "ERROR")) if run.get("verdict") in VERDICT_ORDER else -9,
-                run.get("seed") if isinstance(run.get("seed"), int) else 1 << 30)
-        if key not in best or rank < best[key]["__rank"]:  # type: ignore[index]
-            best[key] = {**run, "__rank": rank}
-    return [best[k] for k in best]
+def representative_runs(case: Mapping[str, Any], *, per_variant: bool = False) -> list[Mapping[str, Any]]:
+    """The run(s) whose figures the report shows: the case's worst run (then the first
+    variant in the record's order, then the lowest seed), or with ``per_variant`` one such
+    run per variant."""
+    runs = list(case.get("runs", []))
+
+    def rank(i: int) -> tuple[int, int, int]:
+        r = runs[i]
+        v = r.get("verdict")
+        worst = -VERDICT_ORDER.index(v) if v in VERDICT_ORDER else -len(VERDICT_ORDER)
+        return worst, i if not per_variant else 0, r.get("seed") if isinstance(r.get("seed"), int) else 1 << 30
+
+    best: dict[str, int] = {}
+    for i, r in enumerate(runs):
+        key = (r.get("variant") or "") if per_variant else ""
+        if key not in best or rank(i) < rank(best[key]):
+            best[key] = i
+    return [runs[i] for i in sorted(best.values())]
 
 
 def folder_locator(root: Path) -> Locate:
@@ -68,10 +77,12 @@ def _draw(recording: str, criteria: list[dict[str, Any]], title: str) -> list[An
     return case_figures(Path(recording), criteria, title=title)
 
 
-def _figure_jobs(results: Mapping[str, Any], locate: Locate) -> tuple[list[tuple[str, str, str, list, str]], list[str]]:
+def _figure_jobs(
+    results: Mapping[str, Any], locate: Locate, per_variant: bool
+) -> tuple[list[tuple[str, str, str, list, str]], list[str]]:
     jobs, notes = [], []
     for case in results.get("cases", []):
-        for run in representative_runs(case):
+        for run in representative_runs(case, per_variant=per_variant):
             name = run.get("recording") or ""
             path = locate(case["id"], name) if name else None
             if path is None:
@@ -84,36 +95,123 @@ def _figure_jobs(results: Mapping[str, Any], locate: Locate) -> tuple[list[tuple
     return jobs, notes
 
 
-def draw_figures(
+def _case_notes(model: dict[str, Any], case_id: str, notes: Sequence[str]) -> None:
+    """Append the figure notes of ``case_id`` to its errors in ``model``."""
+    for c in model["cases"]:
+        if c["id"] == case_id:
+            c["errors"] = [*c["errors"], *(f"report: {n}" for n in notes)]
+
+
+def _pool(n: int) -> cf.Executor | _Serial:
+    return cf.ProcessPoolExecutor(n) if n > 1 else _Serial()
+
+
+def _size(path: str) -> int:
+    try:
+        return os.path.getsize(path)
+    except OSError:
+        return 0
+
+
+def _render_part(html: str) -> bytes:
+    from bench.report.pdf import render_part
+
+    return render_part(html)
+
+
+def build_report(
     results: Mapping[str, Any],
-    locate: Locate,
+    out_dir: str | Path,
     *,
+    locate: Locate | None = None,
+    pdf: bool = True,
+    figures: bool = True,
     workers: int | None = None,
+    per_variant: bool = False,
+    command: str = "",
+    rescore_command: str = "",
+    title: str = "Acceptance report",
     progress: Callable[[float, float], None] | None = None,
-) -> tuple[dict[str, list[Any]], list[str]]:
-    """The figures per case id, and notes on the recordings that could not be drawn."""
-    jobs, notes = _figure_jobs(results, locate)
-    out: dict[str, list[Any]] = {}
-    n = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
-    done = 0
-    if progress is not None:
+    stage: Callable[[str], None] | None = None,
+) -> ReportFiles:
+    """Write ``report.html`` (and ``report.pdf``) for ``results`` into ``out_dir``;
+    ``progress(done, total)`` counts the recordings drawn, ``stage(text)`` names each step.
+
+    One pool of ``workers`` processes (the CPU count by default) draws the figures and lays
+    out the PDF's parts: the front matter at once, each case as soon as its figures are
+    drawn, so layout and drawing share the cores."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    model = report_model(results, title=title)
+    generated = str((results.get("run_info") or {}).get("generated_utc")
+                    or _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"))
+    kw = {"generated_utc": generated, "command": command, "rescore_command": rescore_command}
+    jobs, notes = _figure_jobs(results, locate, per_variant) if figures and locate is not None else ([], [])
+    case_ids = [c["id"] for c in model["cases"]]
+    for note in notes:
+        _case_notes(model, note.split(":", 1)[0], [note])
+    waiting = {cid: sum(1 for j in jobs if j[0] == cid) for cid in case_ids}
+    figs: dict[str, list[Any]] = {cid: [] for cid in case_ids}
+    part_futs: dict[str, cf.Future] = {}
+    n = max(1, min(workers or os.cpu_count() or 1, max(len(jobs), 2 if pdf else 1)))
+    if progress is not None and jobs:
         progress(0, len(jobs))
-    with cf.ProcessPoolExecutor(n) if n > 1 else _Serial() as pool:
-        futures = [pool.submit(_draw, path, crits, title) for _, _, path, crits, title in jobs]
-        for (case_id, variant, path, _, _), fut in zip(jobs, futures, strict=True):
-            try:
-                figs = fut.result()
-            except Exception as exc:  # a figure never hides the report
-                notes.append(f"{case_id}: figures of {Path(path).name} failed: {one_line(exc)}")
-                figs = []
-            for f in figs:
-                if variant:
-                    f.key, f.title = f"{variant}-{f.key}", f"{variant}: {f.title}"
-            out.setdefault(case_id, []).extend(figs)
-            done += 1
-            if progress is not None:
-                progress(done, len(jobs))
-    return out, notes
+    with _pool(n) as pool:
+        if pdf:
+            part_futs["front"] = pool.submit(_render_part, render_html(model, part="front", **kw))
+            for cid in case_ids:
+                if waiting[cid] == 0:
+                    part_futs[cid] = pool.submit(_render_part, render_html(model, figs, part=cid, **kw))
+        # figures go to the pool n at a time, so that a case's part, submitted when its last
+        # figure is in, is laid out before the figures still queued are drawn
+        futs: dict[cf.Future, int] = {}
+        # the largest recordings first: the last to finish are small, so is the layout left after them
+        queue = sorted(range(len(jobs)), key=lambda k: -_size(jobs[k][2]))
+        by_job: dict[int, list[Any]] = {}
+        done = 0
+        while queue or futs:
+            while queue and len(futs) < n:
+                k = queue.pop(0)
+                futs[pool.submit(_draw, jobs[k][2], jobs[k][3], jobs[k][4])] = k
+            finished, _ = cf.wait(list(futs), return_when=cf.FIRST_COMPLETED)
+            for fut in finished:
+                k = futs.pop(fut)
+                cid, variant, path = jobs[k][:3]
+                try:
+                    drawn = fut.result()
+                except Exception as exc:  # a figure never hides the report
+                    note = f"{cid}: figures of {Path(path).name} failed: {one_line(exc)}"
+                    notes.append(note)
+                    _case_notes(model, cid, [note])
+                    drawn = []
+                for f in drawn:
+                    if variant and per_variant:
+                        f.key, f.title = f"{variant}-{f.key}", f"{variant}: {f.title}"
+                by_job[k] = drawn
+                waiting[cid] -= 1
+                done += 1
+                if progress is not None:
+                    progress(done, len(jobs))
+                if waiting[cid] == 0:  # in the order of the jobs, whatever order they finished in
+                    figs[cid] = [f for j in sorted(by_job) if jobs[j][0] == cid for f in by_job[j]]
+                    if pdf:
+                        part_futs[cid] = pool.submit(_render_part, render_html(model, figs, part=cid, **kw))
+        if stage is not None and jobs:
+            stage(f"drew {sum(len(f) for f in figs.values())} figures")
+        html_path = out / "report.html"
+        html_path.write_text(render_html(model, figs, **kw), encoding="utf-8")
+        if stage is not None:
+            stage(f"wrote {html_path}")
+        parts = [part_futs[k].result() for k in ["front", *case_ids]] if pdf else []
+    pdf_path = None
+    if pdf:
+        from bench.report.pdf import assemble
+
+        report_id = str(model["identification"].get("report_id") or "")
+        pdf_path = assemble(parts, out / "report.pdf", footer=f"report {report_id}" if report_id else title)
+        if stage is not None:
+            stage(f"wrote {pdf_path}")
+    return ReportFiles(html_path, pdf_path, notes)
 
 
 class _Serial:
@@ -132,52 +230,6 @@ class _Serial:
         except Exception as exc:
             fut.set_exception(exc)
         return fut
-
-
-def build_report(
-    results: Mapping[str, Any],
-    out_dir: str | Path,
-    *,
-    locate: Locate | None = None,
-    pdf: bool = True,
-    figures: bool = True,
-    workers: int | None = None,
-    command: str = "",
-    rescore_command: str = "",
-    title: str = "Acceptance report",
-    progress: Callable[[float, float], None] | None = None,
-    stage: Callable[[str], None] | None = None,
-) -> ReportFiles:
-    """Write ``report.html`` (and ``report.pdf``) for ``results`` into ``out_dir``;
-    ``progress(done, total)`` counts the recordings drawn, ``stage(text)`` names each step."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    model = report_model(results, title=title)
-    figs: dict[str, list[Any]] = {}
-    notes: list[str] = []
-    if figures and locate is not None:
-        figs, notes = draw_figures(results, locate, workers=workers, progress=progress)
-        if stage is not None:
-            stage(f"drew {sum(len(f) for f in figs.values())} figures")
-    for note in notes:
-        case_id = note.split(":", 1)[0]
-        for c in model["cases"]:
-            if c["id"] == case_id:
-                c["errors"] = [*c["errors"], f"report: {note}"]
-    generated = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
-    html = render_html(model, figs, generated_utc=generated, command=command, rescore_command=rescore_command)
-    html_path = out / "report.html"
-    html_path.write_text(html, encoding="utf-8")
-    pdf_path = None
-    if stage is not None:
-        stage(f"wrote {html_path}")
-    if pdf:
-        from bench.report.pdf import write_pdf
-
-        if stage is not None:
-            stage("laying out the PDF")
-        pdf_path = write_pdf(html, out / "report.pdf")
-    return ReportFiles(html_path, pdf_path, notes)
 
 
 def commands_for(results: Mapping[str, Any], paths: Sequence[str] = ()) -> tuple[str, str]:

@@ -2,10 +2,10 @@
 
 :func:`report_model` turns a results record (``results.json``, :mod:`bench.report.results`)
 into the plain data the templates render: the identification, the summary and counts,
-the requirement coverage matrix, and per case its criteria rows, runs and bench-quality
-figures. Every number is the record's, formatted by :func:`fmt_num`; the exact value
-travels beside it (``raw``) so a test, or a reviewer with the record, can check that the
-report shows the record and nothing else. No third-party library here.
+the requirement coverage matrix, and per case its criteria rows and runs. Every number is
+the record's, formatted by :func:`fmt_num`; the exact value travels beside it (``raw``)
+so a test, or a reviewer with the record, can check that the report shows the record and
+nothing else. No third-party library here.
 """
 
 from __future__ import annotations
@@ -102,21 +102,6 @@ def _criterion_row(cr: Mapping[str, Any]) -> dict[str, Any]:
     }
 
 
-def _quality(run: Mapping[str, Any]) -> dict[str, Any]:
-    """Bench-quality facts of one run: lateness, bad frames, integrity (from the run's
-    ``timing`` and ``identity``, whichever the record has)."""
-    ident = run.get("identity") or {}
-    timing = run.get("timing") or ident.get("timing") or {}
-    lateness = {k: fmt_num(timing[k] / 1e3 if isinstance(timing.get(k), int | float) and k.endswith("_ns")
-                           else timing.get(k))
-                for k in ("count", "p50_ns", "p99_ns", "p999_ns", "max_ns") if k in timing}
-    return {
-        "lateness_us": lateness,
-        "bad_frames": ident.get("bad_frames") or {},
-        "integrity": ident.get("integrity") or {},
-    }
-
-
 def _run_row(run: Mapping[str, Any]) -> dict[str, Any]:
     ident = run.get("identity") or {}
     return {
@@ -124,11 +109,11 @@ def _run_row(run: Mapping[str, Any]) -> dict[str, Any]:
         "variant": run.get("variant") or "",
         "seed": run.get("seed"),
         "verdict": run.get("verdict", "ERROR"),
-        "sha256": ident.get("sha256", ""),
+        "sha256": (ident.get("recording") or {}).get("sha256", ""),
         "bench_issues": list(run.get("bench_issues") or []),
         "dut_issues": list(run.get("dut_issues") or []),
         "notes": list(run.get("notes") or []),
-        "quality": _quality(run),
+        "timing": run.get("timing") or {},
         "identity": ident,
     }
 
