@@ -61,6 +61,12 @@ def load_results(path: Path) -> dict[str, Any]:
         raise ConfigError(f"{file}: not a results record (JSON does not parse: {exc})") from None
     if not isinstance(obj, dict) or not isinstance(obj.get("cases"), list):
         raise ConfigError(f"{file}: not a results record (no 'cases' list)")
+    if "schema_version" in obj:  # a record of the published schema (older ones predate it)
+        from bench.report.results import schema_errors
+
+        errors = schema_errors(obj)
+        if errors:
+            raise ConfigError(f"{file}: not a valid results record: " + "; ".join(errors))
     return obj
 
 

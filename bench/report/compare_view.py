@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.report.compare import MISSING, NEW, SAME, SCHEMA, Comparison, Record, Row
+from bench.report.html import render_string
 from bench.report.results import num
 from bench.textsafe import for_terminal
 
@@ -159,12 +160,9 @@ def to_json(cmp: Comparison) -> dict[str, Any]:
 
 def html_report(cmp: Comparison) -> str:
     """The comparison as one self-contained HTML page (no scripts, no external files)."""
-    import jinja2
-
-    env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True)
-    env.filters["safe_text"] = lambda s: for_terminal("" if s is None else s, keep="\n\t")
-    template = env.from_string(TEMPLATE)
-    return template.render(
+    return render_string(
+        TEMPLATE,
+        {"safe_text": lambda s: for_terminal("" if s is None else s, keep="\n\t")},
         cmp=cmp,
         ident=[("A", identification(cmp.a)), ("B", identification(cmp.b))],
         summary=cmp.summary(),

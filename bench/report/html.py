@@ -22,7 +22,7 @@ import jinja2
 from bench.report.model import fmt_num
 from bench.textsafe import xml_safe
 
-__all__ = ["render_html", "setup_rows", "quality_cells"]
+__all__ = ["render_html", "render_string", "setup_rows", "quality_cells"]
 
 def _line(d: Mapping[str, Any] | None, skip: tuple[str, ...] = ()) -> str:
     """A mapping as one line: ``key value, ...`` (empty and null values left out)."""
@@ -155,3 +155,11 @@ def render_html(
         line=_line,
         part=part,
     )
+
+
+def render_string(source: str, filters: Mapping[str, Any] | None = None, **context: Any) -> str:
+    """Render a template given as text (``bench compare``'s page), autoescaped, every name
+    it uses required (a missing one is an error, not an empty string)."""
+    env = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True)
+    env.filters.update(filters or {})
+    return env.from_string(source).render(**context)

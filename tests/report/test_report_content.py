@@ -146,10 +146,16 @@ def test_bench_report_on_the_recordings_alone_gives_the_live_report(suite_out, t
     assert _sections((tmp_path / "rescored" / "report.html").read_text()) == live
 
 
-@pytest.mark.parametrize("bad", ["missing.json", "not_json.json", "no_cases.json", "notes.txt"])
-def test_a_bad_input_is_a_usage_error_naming_it(tmp_path, capsys, bad):
+@pytest.mark.parametrize("bad", ["missing.json", "not_json.json", "no_cases.json", "notes.txt", "invalid.json"])
+def test_a_bad_input_is_a_usage_error_naming_it(suite_out, tmp_path, capsys, bad):
     (tmp_path / "not_json.json").write_text("{ nope")
     (tmp_path / "no_cases.json").write_text('{"verdict": "PASS"}')
     (tmp_path / "notes.txt").write_text("x")
+    record = _record(suite_out)
+    record["cases"][1]["criteria"][0]["value"] = "five"
+    (tmp_path / "invalid.json").write_text(json.dumps(record))
     assert cli(["report", str(tmp_path / bad), "-o", str(tmp_path / "o"), "-q"]) == 2
-    assert bad in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert bad in err
+    if bad == "invalid.json":
+        assert "cases[1].criteria[0].value" in err
