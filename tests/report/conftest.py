@@ -5,6 +5,7 @@ dead-reckoning run of the engine with a fault file (``bench run``)."""
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -130,3 +131,12 @@ def suite_out(tmp_path_factory) -> Path:
     code = cli(["accept", str(cases / "rpt_a.toml"), str(cases / "rpt_b.toml"), "-o", str(out), "-q"])
     assert code == 1, "RPT-B fails its limit, RPT-A passes"
     return out
+
+
+@pytest.fixture(scope="session")
+def report_dir(request) -> Path:
+    """The folder whose report.html, report.pdf and results.json the report checks read:
+    ``$BENCH_REPORT_DIR`` when set (the main job's ``reports/`` after ``make demo``, say),
+    otherwise the report-test suite's."""
+    given = os.environ.get("BENCH_REPORT_DIR")
+    return Path(given) if given else request.getfixturevalue("suite_out")

@@ -65,10 +65,10 @@ def _record(out: Path) -> dict:
     return json.loads((out / "results.json").read_text())
 
 
-def test_every_criterion_value_and_margin_in_the_html_equals_the_record(suite_out):
-    record = _record(suite_out)
+def test_every_criterion_value_and_margin_in_the_html_equals_the_record(report_dir):
+    record = _record(report_dir)
     cells = _Cells()
-    cells.feed((suite_out / "report.html").read_text())
+    cells.feed((report_dir / "report.html").read_text())
     expected = {}
     for case in record["cases"]:
         for cr in case["criteria"]:
@@ -76,10 +76,13 @@ def test_every_criterion_value_and_margin_in_the_html_equals_the_record(suite_ou
             expected[key] = {"value": (json.dumps(cr["value"]), fmt_num(cr["value"])),
                              "margin": (json.dumps(cr["margin"]), fmt_num(cr["margin"]))}
     assert len(expected) >= 20 and cells.rows == expected
-    # RPT-A's two seeds: each criterion's value per seed
-    seeds = [(json.dumps(r["value"]), fmt_num(r["value"])) for cr in record["cases"][0]["criteria"]
-             for r in cr["runs"]]
-    assert len(seeds) == 2 * len(record["cases"][0]["criteria"]) and cells.seeds["RPT-A"] == seeds
+    # the values per seed of every case run with more than one
+    for case in record["cases"]:
+        seeds = [(json.dumps(r["value"]), fmt_num(r["value"])) for cr in case["criteria"] if len(cr["runs"]) > 1
+                 for r in cr["runs"]]
+        assert cells.seeds.get(case["id"], []) == seeds
+    if record["cases"][0]["id"] == "RPT-A":  # the report-test suite: two seeds x 14 criteria
+        assert len(cells.seeds["RPT-A"]) == 28
 
 
 def test_the_report_names_the_verdicts_the_gaps_and_the_dut_text_escaped(suite_out):
@@ -100,14 +103,14 @@ def _pdf_pages(pdf: Path) -> list[str]:
     return [p.extract_text() for p in pypdf.PdfReader(pdf).pages]
 
 
-def test_the_pdf_has_the_same_sections_and_numbers_and_renders_to_pages(suite_out, tmp_path):
-    pdf = suite_out / "report.pdf"
+def test_the_pdf_has_the_same_sections_and_numbers_and_renders_to_pages(report_dir, tmp_path):
+    pdf = report_dir / "report.pdf"
     assert pdf.stat().st_size < 10 * 1024 * 1024
     pages = _pdf_pages(pdf)
     text = "\n".join(pages)
     for title in SECTIONS:
         assert title in text
-    record = _record(suite_out)
+    record = _record(report_dir)
     for case in record["cases"]:
         start = next(i for i, p in enumerate(pages) if f"{case['id']}: {case['title']}" in p)
         end = next((i for i in range(start + 1, len(pages)) if any(
@@ -116,7 +119,8 @@ def test_the_pdf_has_the_same_sections_and_numbers_and_renders_to_pages(suite_ou
         for cr in case["criteria"]:
             shown = fmt_num(cr["value"])
             assert re.search(rf"(?<![\d.]){re.escape(shown)}(?![\d])", case_text), (case["id"], cr["id"], shown)
-    assert HOSTILE_NAME in text  # as text
+    if record["cases"][0]["id"] == "RPT-A":
+        assert HOSTILE_NAME in text  # as text
     # every page renders (poppler), and none is blank
     subprocess.run(["pdftoppm", "-r", "30", "-png", str(pdf), str(tmp_path / "p")], check=True)
     import matplotlib.image as mpimg
