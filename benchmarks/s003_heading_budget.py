@@ -1,19 +1,20 @@
 """S003b heading consistency budget: which error source makes the seed-003 estimator's
 heading NEES leave its band after the commanded switch.
 
-Runs the S003b case's ``with_conversion`` variant on seeds 1..N four times, changing only
+Runs the S003b case's ``with_conversion`` variant on seeds 1..N six times, changing only
 the IMU: the seed's (``models/imu/seed003_vehicle.toml``: constant biases 0.015 deg/h and
 85 ug, fixed, the same on every axis and every seed; noise 0.0007 deg/sqrt(h) and
-10 ug/sqrt(Hz)), its constant biases alone, its noise alone, and an ideal one (every error
-10^-4 of the seed's or less). The BDS and Doppler draws are the same in the four (same
-seeds); the estimator's configuration stays the seed's IMU in all of them. Prints, per IMU:
+10 ug/sqrt(Hz)), its constant biases alone, its noise alone, its gyro noise alone, its
+accelerometer noise alone, and an ideal one (every error 10^-4 of the seed's or less).
+The BDS and Doppler draws are the same in all (same seeds); the estimator's
+configuration stays the seed's IMU in all of them. Prints, per IMU:
 
 * the fraction of epochs whose heading NEES lies in its 95 % band (1 dof), pooled over
   the seeds, before the switch (after 60 s) and from the switch + 60 s on -- the figures of
   ``benchmarks/s003_monte_carlo.py`` section 4;
 * the heading error at the end of the drive per seed, the filter's sigma there, and the
   RMS over the seeds;
-* for the three non-ideal IMUs, the heading error minus the ideal IMU's on the same seed
+* for the non-ideal IMUs, the heading error minus the ideal IMU's on the same seed
   (what that IMU error did, as the errors add): mean and spread over the seeds.
 
     .venv/bin/python benchmarks/s003_heading_budget.py [--runs 10] [--at 590]
@@ -49,6 +50,8 @@ GRADES = {
     "seed's IMU": None,
     "biases only": (f'bias = "0.015 deg/h"\nnoise = "{_NG0}"', f'bias = "85 ug"\nnoise = "{_NA0}"'),
     "noise only": (f'bias = "{_G0}"\nnoise = "0.0007 deg/sqrt(h)"', f'bias = "{_A0}"\nnoise = "10 ug/sqrt(Hz)"'),
+    "gyro noise": (f'bias = "{_G0}"\nnoise = "0.0007 deg/sqrt(h)"', f'bias = "{_A0}"\nnoise = "{_NA0}"'),
+    "accel noise": (f'bias = "{_G0}"\nnoise = "{_NG0}"', f'bias = "{_A0}"\nnoise = "10 ug/sqrt(Hz)"'),
     "ideal IMU": (f'bias = "{_G0}"\nnoise = "{_NG0}"', f'bias = "{_A0}"\nnoise = "{_NA0}"'),
 }
 ARCMIN = math.radians(1.0 / 60.0)
@@ -122,7 +125,7 @@ def main() -> int:
         print(f"  {label:<12} " + " ".join(f"{e:+6.2f}" for e, _ in ends))
     ideal = np.array([e for e, _ in results["ideal IMU"]])
     print("\n  the IMU error's part (minus the ideal IMU's error on the same seed):")
-    for label in ("seed's IMU", "biases only", "noise only"):
+    for label in [g for g in GRADES if g != "ideal IMU"]:
         d = np.array([e for e, _ in results[label]]) - ideal
         neg = int(np.sum(d < 0))
         print(f"  {label:<12} mean {d.mean():+6.2f}'  spread (sd) {d.std(ddof=1):5.2f}'  "
