@@ -15,7 +15,6 @@ NEES lies in its 95 % band (the case's NEES-POS).
 from __future__ import annotations
 
 import argparse
-import subprocess
 import sys
 import tempfile
 import tomllib
@@ -25,6 +24,9 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from imu_budget import launch  # noqa: E402
 
 from bench.scoring.align import nav_errors  # noqa: E402
 from bench.scoring.consistency import chi2_bounds, nees_series  # noqa: E402
@@ -90,21 +92,8 @@ def main() -> int:
     print(f"S002 with_detection, seed {args.seed}: heading error (arcmin) and the filter's sigma, by IMU")
     with tempfile.TemporaryDirectory() as tmpd:
         tmp = Path(tmpd)
-        procs = []
-        for k, (label, grade) in enumerate(GRADES.items()):
-            gfile = None
-            if grade is not None:
-                gfile = tmp / f"imu{k}.toml"
-                gfile.write_text(f'name = "{label}"\n[gyro]\n{grade[0]}\n[accel]\n{grade[1]}\n')
-            case = _case_for(gfile, tmp, f"g{k}")
-            cli = "import sys; from bench.cli import main; sys.exit(main())"
-            cmd = [sys.executable, "-c", cli, "run", str(case), "-o", str(tmp / f"out{k}"), "--force", "--no-plots",
-                   "-q", "--seed", str(args.seed), "--variant", "with_detection"]
-            procs.append((label, k, subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                                                      text=True)))
-            if len(procs) % 2 == 0:  # two at a time: one per core
-                for *_, p in procs[-2:]:
-                    p.wait()
+        procs = launch(GRADES, lambda g, tag: _case_for(g, tmp, tag), tmp,
+                       ["--seed", str(args.seed), "--variant", "with_detection"])
         print(f"  {'IMU':<12} {'after alignment':>22} {'end of the drive':>22} {'max |error|/sigma':>18} "
               f"{'position NEES in band':>22}")
         for label, k, p in procs:

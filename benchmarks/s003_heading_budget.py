@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -35,6 +34,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
+from imu_budget import launch  # noqa: E402
 from s003_monte_carlo import _one  # noqa: E402
 
 from bench.scoring.align import nav_errors  # noqa: E402
@@ -87,22 +87,8 @@ def main() -> int:
     results: dict[str, list[tuple[float, float]]] = {}
     with tempfile.TemporaryDirectory() as tmpd:
         tmp = Path(tmpd)
-        procs = []
-        for k, (label, grade) in enumerate(GRADES.items()):
-            gfile = None
-            if grade is not None:
-                gfile = tmp / f"imu{k}.toml"
-                gfile.write_text(f'name = "{label}"\n[gyro]\n{grade[0]}\n[accel]\n{grade[1]}\n')
-            cli = "import sys; from bench.cli import main; sys.exit(main())"
-            cmd = [sys.executable, "-c", cli, "run", str(_case_for(gfile, tmp, f"g{k}")), "-o", str(tmp / f"out{k}"),
-                   "--force", "--no-plots", "-q", "--variant", "with_conversion"]
-            for s in seeds:
-                cmd += ["--seed", str(s)]
-            procs.append((label, k, subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                                                      text=True)))
-            if len(procs) % 2 == 0:  # two at a time: one per core
-                for *_, p in procs[-2:]:
-                    p.wait()
+        seed_args = [a for s in seeds for a in ("--seed", str(s))]
+        procs = launch(GRADES, lambda g, tag: _case_for(g, tmp, tag), tmp, ["--variant", "with_conversion", *seed_args])
         print(f"  {'IMU':<12} {'NEES in band before':>20} {'after switch+60 s':>18} "
               f"{'error at ' + format(args.at, '.0f') + ' s, RMS':>22} {'sigma there':>12}")
         for label, k, p in procs:
