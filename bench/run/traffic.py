@@ -127,6 +127,8 @@ class TrafficEncoder:
         self.injector = WireFaultInjector(schedule, seed, lockstep=lockstep)
         self._faulty = any(w.layer == "wire" for w in schedule)
         self._imu_counter = 0
+        self._carry_th = np.zeros(3)
+        self._carry_dv = np.zeros(3)
         self._held_gnss = SerialBatch.empty()
         self._topic: dict[str, str] = dict(topics or {})
         for m in models:
@@ -174,9 +176,10 @@ class TrafficEncoder:
             n = len(rec)
             counter = (self._imu_counter + np.arange(n)) % 256
             self._imu_counter = (self._imu_counter + n) % 256
-            imu = imu_codec.encode_batch(
-                rec["t_ns"], rec["dtheta"], rec["dvel"], rec["status"], rec["temperature"], counter
-            )
+            # the remainders carried from frame to frame, as the IMU's pulse counters keep them
+            th, self._carry_th = imu_codec.carry_quantize(rec["dtheta"], imu_codec.DTHETA_LSB, self._carry_th)
+            dv, self._carry_dv = imu_codec.carry_quantize(rec["dvel"], imu_codec.DVEL_LSB, self._carry_dv)
+            imu = imu_codec.encode_batch(rec["t_ns"], th, dv, rec["status"], rec["temperature"], counter)
         gnss = self._gnss(records.get(self._topic.get("bds", "")), t1_ns)
         if self._faulty:
             return faulted(self.injector, can, imu, gnss, t1_ns)
