@@ -90,6 +90,9 @@ class DutSpec:
     variants: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     synthetic: Any = None
     description: str = ""
+    #: the DUT's version as the case declares it (``[dut] version``); in-process reference
+    #: estimators are the bench's own code: their version is the bench's when none is given
+    version: str = ""
 
 
 @dataclass(frozen=True)

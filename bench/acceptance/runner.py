@@ -109,6 +109,18 @@ def recording_name(case: TestCase, seed: int) -> str:
     return f"{case.id}{variant}-s{seed}.mcap"
 
 
+def dut_version(case: TestCase) -> str:
+    """The DUT's version for the record: the case's ``[dut] version``; for an in-process
+    reference estimator without one, ``bench <version>`` (it is the bench's code)."""
+    if case.dut.version:
+        return case.dut.version
+    if case.dut.kind == "in_process":
+        from bench import __version__
+
+        return f"bench {__version__}"
+    return ""
+
+
 def run_start_metadata(case: TestCase, seed: int, runner: str, **extra: Any) -> dict[str, Any]:
     """The ``run_start`` record every runner writes (extend with ``extra``)."""
     return {
@@ -122,6 +134,7 @@ def run_start_metadata(case: TestCase, seed: int, runner: str, **extra: Any) -> 
         "clock_mode": case.clock.mode,
         "dut_kind": case.dut.kind,
         "dut_name": case.dut.name or "",
+        "dut_version": dut_version(case),
         "requirements": list(case.requirements),
         **host_metadata(),
         **extra,

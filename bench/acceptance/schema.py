@@ -331,6 +331,7 @@ def _dut(t: Table, base: Path | None, check_files: bool) -> DutSpec:
     shutdown = t.quantity("shutdown_timeout", "time", "s", 5.0, positive=True, bound="timeout")
     links = _links(t.table("links"))
     description = t.str("description", "")
+    version = t.str("version", "")
     synthetic_raw = t.raw("synthetic", None)
     variants_t = t.table("variants")
     t.finish()
@@ -389,4 +390,5 @@ def _dut(t: Table, base: Path | None, check_files: bool) -> DutSpec:
         variants=variants,
         synthetic=synthetic,
         description=str(description),
+        version=str(version),
     )

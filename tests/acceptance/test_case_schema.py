@@ -201,3 +201,19 @@ def test_s001_judges_every_variant_on_complete_valid_output():
     assert not missing.window.converged and not missing.window.gnss  # the whole run
     assert invalid.window.converged and not invalid.window.gnss  # from convergence on, outages included
     assert missing.limit.high <= 0.01 and invalid.limit.high == 0.0
+
+
+def test_the_dut_version_is_the_cases_or_the_benchs_for_a_reference_estimator(make_case):
+    from bench import __version__
+    from bench.acceptance.runner import run_start_metadata
+
+    synthetic = load_case(make_case(base_case()))
+    assert synthetic.dut.version == "" and run_start_metadata(synthetic, 1, "x")["dut_version"] == ""
+    with_version = base_case().replace('kind = "synthetic"', 'kind = "synthetic"\nversion = "4.2.1"', 1)
+    declared = load_case(make_case(with_version))
+    assert run_start_metadata(declared, 1, "x")["dut_version"] == "4.2.1"
+    reference = load_case(paths.test_cases_dir() / "S000_sins_doppler.toml")
+    assert reference.dut.kind == "in_process" and not reference.dut.version
+    assert run_start_metadata(reference, 1, "x")["dut_version"] == f"bench {__version__}"
+    err = _error(make_case, base_case().replace('kind = "synthetic"', 'kind = "synthetic"\nversion = 4', 1))
+    assert err.key == "dut.version"

@@ -15,6 +15,7 @@ from pathlib import Path
 from tests.acceptance.conftest import DRIVE
 
 HOSTILE_NAME = "<script>alert('dut')</script> filter"
+HOSTILE_VERSION = "1.2.0-rc1 <b>beta</b>"
 
 CASE_A = """
 [case]
@@ -44,6 +45,7 @@ command = "grid"
 [dut]
 kind = "synthetic"
 name = "NAME"
+version = "VERSION"
 
 [dut.synthetic]
 rate = "100 Hz"
@@ -135,6 +137,6 @@ def write_suite(folder: Path) -> Path:
     cases = folder / "cases"
     cases.mkdir(parents=True, exist_ok=True)
     (cases / "drive.toml").write_text(DRIVE)
-    (cases / "rpt_a.toml").write_text(CASE_A.replace("NAME", HOSTILE_NAME))
+    (cases / "rpt_a.toml").write_text(CASE_A.replace("NAME", HOSTILE_NAME).replace("VERSION", HOSTILE_VERSION))
     (cases / "rpt_b.toml").write_text(CASE_B)
     return cases

@@ -16,7 +16,7 @@ import pytest
 
 from bench.cli.app import run as cli
 from bench.report.model import fmt_num
-from tests.report.suite import HOSTILE_NAME
+from tests.report.suite import HOSTILE_NAME, HOSTILE_VERSION
 
 SECTIONS = ("Identification", "Summary", "Requirement coverage", "Reproduction", "Approval")
 
@@ -90,6 +90,10 @@ def test_the_report_names_the_verdicts_the_gaps_and_the_dut_text_escaped(suite_o
     assert "<script" not in html.lower()  # the page has no script, and the DUT's markup is text
     assert "&lt;script&gt;alert(&#39;dut&#39;)&lt;/script&gt; filter" in html
     record = _record(suite_out)
+    # the DUT's declared version is identified, as text
+    assert {"kind": "synthetic", "name": HOSTILE_NAME, "command": None, "version": HOSTILE_VERSION} in record[
+        "identification"]["duts"]
+    assert "1.2.0-rc1 &lt;b&gt;beta&lt;/b&gt;" in html and "<b>beta" not in html
     assert record["verdict"] == "FAIL" and 'data-verdict="FAIL"' in html
     # R-NEVER is named by RPT-B and judged by nothing: flagged in the coverage matrix
     row = re.search(r'<tr class="gap"><td>R-NEVER</td>.*?</tr>', html, re.S)
