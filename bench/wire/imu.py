@@ -113,14 +113,15 @@ def _scaled(name: str, value, lsb: float, dtype) -> np.ndarray:
     return raw.astype(dtype)
 
 
-def carry_quantize(values, lsb: float, carry: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def carry_quantize(values: np.ndarray, lsb: float, carry: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Increments ``values`` (N, 3) rounded to whole ``lsb`` with the remainder carried to
-    the next one, as an IMU's pulse counter keeps it: the sum of what is sent stays within
-    one LSB of the sum of the increments, however many frames (rounding each frame on its
-    own adds up to a drift when the increments do not dither it: up to half an LSB per
-    frame, 0.02 deg/h at 200 Hz). ``carry`` (3,) is the remainder in LSB before the first;
-    returns the rounded values (multiples of ``lsb``; non-finite values stay non-finite)
-    and the remainder after the last."""
+    the next one, as an IMU's pulse counter keeps it: each sent value is within one LSB of
+    its increment and the sum of what is sent within half an LSB of the sum of the
+    increments, however many frames (rounding each frame on its own adds up to a drift when
+    the increments do not dither it: up to half an LSB per frame, 0.02 deg/h at 200 Hz).
+    ``carry`` (3,) is the remainder in LSB before the first; returns the rounded values
+    (multiples of ``lsb``; non-finite values stay non-finite) and the remainder after the
+    last."""
     v = np.asarray(values, np.float64)
     if not len(v):
         return v, carry
