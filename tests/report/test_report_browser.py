@@ -69,3 +69,19 @@ def test_the_report_opens_in_chromium_without_errors_and_every_image_shows(brows
     pixels = mpimg.imread(shot)
     assert pixels.shape[0] > 2000 and float(np.std(pixels[..., :3])) > 0.05  # a long page with content
     page.close()
+
+
+OVERFLOW_JS = """() => Array.from(document.querySelectorAll('table.criteria td'))
+  .filter(td => td.scrollWidth > td.clientWidth + 1)
+  .map(td => td.innerText.slice(0, 60))"""
+
+
+def test_no_criteria_cell_spills_into_its_neighbour_at_the_width_of_a_printed_page(browser, report_dir):
+    # A4 less the margins is about 690 CSS px: long ids and dotted metric names must break
+    # inside their column (they ran over the value column in the PDF)
+    page = browser.new_page(viewport={"width": 690, "height": 900})
+    page.emulate_media(media="print")
+    page.goto((report_dir / "report.html").as_uri(), wait_until="load")
+    assert page.evaluate("document.querySelectorAll('table.criteria td').length") > 20
+    assert page.evaluate(OVERFLOW_JS) == []
+    page.close()
