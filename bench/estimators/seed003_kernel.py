@@ -40,9 +40,9 @@ from bench.estimators.ins_model import (
     PHI,
     discretize,
     ins_error_matrix,
-    position_difference,
 )
-from bench.estimators.kf import innovation_covariance, joseph_update, nis, time_update
+from bench.estimators.kf import time_update
+from bench.estimators.seed003_meas import position_update, velocity_update
 from bench.estimators.seed003_state import (
     _GRID_SINGULAR,
     FRAME_GEOGRAPHIC,
@@ -51,7 +51,6 @@ from bench.estimators.seed003_state import (
     P_AUTO,
     P_CONV,
     P_DOPTO,
-    P_GATE,
     P_GLIM,
     P_HYST,
     P_NA,
@@ -59,10 +58,7 @@ from bench.estimators.seed003_state import (
     P_OUT,
     P_QA,
     P_QG,
-    P_RDOP,
-    P_RNHC,
     P_RP0,
-    P_RPOS,
     P_S0,
     P_SWLAT,
     P_TU,
@@ -79,18 +75,12 @@ from bench.estimators.seed003_state import (
     S_DV,
     S_FN,
     S_FRAME,
-    S_LAST_BDS,
-    S_LAST_VEL,
     S_MANUAL,
     S_MODE,
-    S_NBDS,
     S_NEXT_OUT,
     S_NEXT_VEL,
-    S_NIS,
     S_NREFUSED,
-    S_NREJ,
     S_NSWITCH,
-    S_NVEL,
     S_P0,
     S_PHASE,
     S_SINS,
@@ -110,7 +100,7 @@ from bench.estimators.sins_core import (
     quat_dcm,
     zupt_update,
 )
-from bench.nav.ecef import ecef_position, enu_frame, from_geographic, geodetic, grid_frame, step_e, to_geographic
+from bench.nav.ecef import enu_frame, from_geographic, geodetic, grid_frame, step_e, to_geographic
 from bench.nav.strapdown import _step
 
 __all__ = ["run_step", "switch_frame", "restart_covariance"]
@@ -220,79 +210,6 @@ def switch_frame(st: np.ndarray, P: np.ndarray, prm: np.ndarray, to_grid: bool, 
 
 
 @njit(cache=True)
-def _position_update(st: np.ndarray, P: np.ndarray, prm: np.ndarray, fix: np.ndarray, t: float) -> None:
-    """A position fix (measured at ``fix[0]`` ns) against the INS carried back to that
-    time along its velocity; sigmas from the fix (GST) with a floor, chi-square gated."""
-    if fix[9] <= 0.0:
-        return
-    back = (t - fix[0]) * 1e-9
-    n = N_STATES
-    z = np.zeros(3)
-    H = np.zeros((3, n))
-    R = np.zeros((3, 3))
-    sig = np.array([max(fix[7], prm[P_RPOS]), max(fix[6], prm[P_RPOS]), max(fix[8], prm[P_RPOS])])
-    sins = st[S_SINS : S_SINS + 20]
-    if st[S_FRAME] == FRAME_GEOGRAPHIC:
-        position_difference(sins[0], sins[1], sins[2], fix[1], fix[2], fix[3], z)
-        for i in range(3):
-            z[i] -= sins[3 + i] * back
-            R[i, i] = sig[i] ** 2
-    else:
-        rf = np.zeros(3)
-        ecef_position(fix[1], fix[2], fix[3], rf)
-        for i in range(3):
-            z[i] = sins[i] - sins[3 + i] * back - rf[i]
-        Cen = np.empty((3, 3))
-        enu_frame(fix[1], fix[2], Cen)
-        D = np.zeros((3, 3))
-        for i in range(3):
-            D[i, i] = sig[i] ** 2
-        R[:, :] = Cen.T @ D @ Cen  # seed eq. 24: the ECEF difference, its noise rotated from ENU
-    for i in range(3):
-        H[i, DR + i] = 1.0
-    S = innovation_covariance(P, H, R)
-    d2 = nis(z, S)
-    st[S_NIS] = d2
-    if prm[P_GATE] > 0.0 and d2 > prm[P_GATE]:
-        st[S_NREJ] += 1.0
-        return
-    x = np.zeros(n)
-    joseph_update(x, P, z, H, R)
-    feedback(st, x)
-    st[S_NBDS] += 1.0
-    st[S_LAST_BDS] = t
-
-
-@njit(cache=True)
-def _velocity_update(st: np.ndarray, P: np.ndarray, prm: np.ndarray, t: float) -> None:
-    """The velocity aid in the body frame: (right, forward, up) = (0, Doppler speed, 0),
-    the same in either frame (``v_b = C_b^nav' v_nav``)."""
-    n = N_STATES
-    C = np.zeros((3, 3))
-    v = np.zeros(3)
-    nav_dcm_velocity(st, C, v)
-    vb = C.T @ v
-    # v_b computed = C'(I + [phi x])(v + dv): H_phi = -C' [v x], H_dv = C'
-    sk = np.zeros((3, 3))
-    sk[0, 1], sk[0, 2], sk[1, 0], sk[1, 2], sk[2, 0], sk[2, 1] = -v[2], v[1], v[2], -v[0], -v[1], v[0]
-    Mphi = -(C.T @ sk)
-    z = np.zeros(3)
-    H = np.zeros((3, n))
-    R = np.zeros((3, 3))
-    for i in range(3):
-        z[i] = vb[i] - (st[S_DV] if i == 1 else 0.0)
-        for j in range(3):
-            H[i, DV + j] = C[j, i]
-            H[i, PHI + j] = Mphi[i, j]
-        R[i, i] = (prm[P_RDOP] if i == 1 else prm[P_RNHC]) ** 2
-    x = np.zeros(n)
-    joseph_update(x, P, z, H, R)
-    feedback(st, x)
-    st[S_NVEL] += 1.0
-    st[S_LAST_VEL] = t
-
-
-@njit(cache=True)
 def run_step(
     st: np.ndarray,
     P: np.ndarray,
@@ -383,13 +300,13 @@ def run_step(
         while jf < fixes.shape[0] and fixes[jf, 0] <= t:  # (at rest the alignment has its own)
             if nav:
                 _catch_up(st, P, prm)
-                _position_update(st, P, prm, fixes[jf], t)
+                position_update(st, P, prm, fixes[jf], t)
             jf += 1
         if nav and t >= st[S_NEXT_VEL]:
             st[S_NEXT_VEL] += prm[P_VELPER]
             if prm[P_VEL] > 0.0 and st[S_DOK] > 0.0 and t - st[S_DT] <= prm[P_DOPTO]:
                 _catch_up(st, P, prm)
-                _velocity_update(st, P, prm, t)
+                velocity_update(st, P, prm, t)
         st[S_MODE] = output_mode(st, prm, t)
         if t >= st[S_NEXT_OUT] and t % prm[P_OUT] == 0.0:
             output(st, P, t, sol[n_out], qual[n_out])
