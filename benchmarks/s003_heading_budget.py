@@ -43,9 +43,7 @@ from imu_budget import launch  # noqa: E402
 from s003_monte_carlo import _one  # noqa: E402
 
 from bench.record.reader import RecordingReader  # noqa: E402
-from bench.scoring.align import nav_errors  # noqa: E402
-from bench.scoring.consistency import nees_series  # noqa: E402
-from bench.scoring.data import load_run  # noqa: E402
+from bench.wire import imu as imu_codec  # noqa: E402
 
 CASE = ROOT / "test_cases" / "S003b_frame_switch_commanded.toml"
 SCRIPT = "scenarios/S003b_commanded_switch.toml"
@@ -82,26 +80,24 @@ def _case_for(grade: Path | None, tmp: Path, tag: str) -> Path:
     return out
 
 
-def _end(path: Path, at_s: float) -> tuple[float, float]:
-    """Heading error and the filter's heading sigma (arcmin) at ``at_s``."""
-    d = load_run(path)
-    e = nav_errors(d.truth, d.nav)
-    q = d.quality[np.argsort(d.quality["t_ns"], kind="stable")]
-    _, nees = nees_series(e, q, "heading")
-    i = min(int(np.searchsorted(e.t_ns * 1e-9, at_s)), len(e.t_ns) - 1)
-    err = float(e.att[i, 0])
-    return err / ARCMIN, abs(err) / max(math.sqrt(float(nees[i])), 1e-12) / ARCMIN
+def _end(one: dict, at_s: float) -> tuple[float, float]:
+    """Heading error and the filter's heading sigma (arcmin) at ``at_s``, from
+    :func:`s003_monte_carlo._one`'s figures of a run."""
+    t = one["t"] * 1e-9
+    i = min(int(np.searchsorted(t, at_s)), len(t) - 1)
+    err = float(one["hdg"][i])
+    return err / ARCMIN, abs(err) / max(math.sqrt(float(one["nees_heading"][i])), 1e-12) / ARCMIN
 
 
 def _wire_rounding(path: Path) -> np.ndarray:
     """Mean of (ICD frame's angle increment - the IMU's), per axis, as a rate in deg/h."""
     with RecordingReader(path) as r:
-        imu = r.read_columnar("/imu")
+        sent = r.read_columnar("/imu")
         _, _, data = r.read_chunks("/wire/imu/tx")
-    frames = data.reshape(-1, 42)[: len(imu)]
-    wire = frames[:, 12:24].copy().view("<i4").astype(np.float64) * 1e-9
-    dt = float(np.median(np.diff(imu["t_ns"]))) * 1e-9
-    return np.degrees((wire - imu["dtheta"][: len(frames)]).mean(axis=0) / dt) * 3600.0
+    wire, _ = imu_codec.decode_frames(data)
+    n = min(len(wire), len(sent))
+    dt = float(np.median(np.diff(sent["t_ns"]))) * 1e-9
+    return np.degrees((wire["dtheta"][:n] - sent["dtheta"][:n]).mean(axis=0) / dt) * 3600.0
 
 
 def main() -> int:
@@ -131,7 +127,7 @@ def main() -> int:
                 sys.stderr.write(err)
                 raise SystemExit(f"{label}: a run left no recording (exit {p.returncode})")
             one = [_one(x, 60.0) for x in paths]
-            ends = np.array([_end(x, args.at) for x in paths])
+            ends = np.array([_end(o, args.at) for o in one])
             pre = 100 * np.mean([o["nees_heading_pre"] for o in one])
             post = 100 * np.mean([o["nees_heading_post"] for o in one])
             rounding = _wire_rounding(paths[0])

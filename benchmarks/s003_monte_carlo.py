@@ -96,6 +96,7 @@ def _one(path: Path, converged_s: float) -> dict:
         inb = (nees >= lo) & (nees <= hi) & ok
         pre = (t >= converged_s) & (t < ts - 10.0) & ok
         post = (t >= ts + 60.0) & ok
+        out[f"nees_{qty}"] = nees
         out[f"nees_{qty}_pre"] = float(np.mean(inb[pre])) if pre.any() else math.nan
         out[f"nees_{qty}_post"] = float(np.mean(inb[post])) if post.any() else math.nan
     return out

@@ -59,9 +59,9 @@ def test_frames_of_the_traffic_encoder_sum_to_the_increments_within_one_lsb():
     for t0 in range(0, int(rec["t_ns"][-1]), step):
         sel = rec[(rec["t_ns"] > t0) & (rec["t_ns"] <= t0 + step)]
         chunks.append(enc.window({"/imu": sel}, t0, t0 + step).imu.buf)
-    frames = np.concatenate(chunks).reshape(-1, imu.FRAME_SIZE)
-    assert len(frames) == N
-    th = frames[:, 12:24].copy().view("<i4").astype(np.float64)
-    dv = frames[:, 24:36].copy().view("<i4").astype(np.float64)
+    wire, status = imu.decode_frames(np.concatenate(chunks))
+    assert len(wire) == N and not status.any()
+    th = wire["dtheta"] / imu.DTHETA_LSB
+    dv = wire["dvel"] / imu.DVEL_LSB
     assert np.abs(np.cumsum(th, axis=0) - np.cumsum(rec["dtheta"] / imu.DTHETA_LSB, axis=0)).max() <= 0.501
     assert np.abs(np.cumsum(dv, axis=0) - np.cumsum(rec["dvel"] / imu.DVEL_LSB, axis=0)).max() <= 0.501
