@@ -173,11 +173,9 @@ def _mapped_run(args: argparse.Namespace, path: Path, mapping: Any, trust: Any, 
     except BenchError as exc:
         report(False, "a short run through the mapping (start: heading 0 deg, at rest)", [str(exc)])
         return
-    kind = "the FMU's position and heading" if mapping.pose_truth else (
-        "body velocity and the FMU's heading" if mapping.heading is not None else "body velocity and rate, integrated")
     lines = []
     for name, m in run.consistency.items():
         unit, k = ("m/s", 1.0) if name == "velocity" else ("deg/s", 180.0 / math.pi)
         lines.append(f"misfit of the FMU's {name.replace('_', ' ')} to its pose: rms {m.rms * k:.3g} {unit}, max "
                      f"{m.max * k:.3g} {unit} at t = {m.at_s:g} s ({m.samples} steps)")
-    report(True, f"a short run through the mapping: truth from {kind}", lines)
+    report(True, f"a short run through the mapping: truth from {run.truth_from}", lines)

@@ -95,6 +95,15 @@ class PlantRun:
     trust: FmuTrust | None = None
     consistency: dict[str, Misfit] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    truth_from: str = "body velocity and rate, integrated"
+
+    def record(self) -> dict[str, str | list[str]]:
+        """What a recording's ``plant`` metadata says about the truth's source and checks."""
+        out: dict[str, str | list[str]] = {"truth_from": self.truth_from, "mapping_warnings": list(self.warnings)}
+        for name, m in self.consistency.items():
+            unit = "m/s" if name == "velocity" else "rad/s"
+            out[f"misfit_{name}"] = f"rms {m.rms:.3g} {unit}, max {m.max:.3g} {unit} at {m.at_s:g} s"
+        return out
 
 
 def _step_index(t: float, h: float, what: str) -> int:
@@ -211,8 +220,14 @@ def run_plant(
     return PlantRun(
         samples=samples, steps=n_steps, elapsed_s=time.perf_counter() - started, step_s=h,
         sha256=trust.sha256, description=desc, log=log, trust=trust, consistency=meter.report(),
-        warnings=mapping_warnings(desc, mapping),
+        warnings=mapping_warnings(desc, mapping), truth_from=_truth_from(mapping),
     )
+
+
+def _truth_from(m: PlantMapping) -> str:
+    if m.pose_truth:
+        return "the FMU's position and heading"
+    return "body velocity and the FMU's heading" if m.heading is not None else "body velocity and rate, integrated"
 
 
 def _check_start(setup: PlantSetup, q: dict[str, np.ndarray], source: PoseSource | BodyIntegrator) -> None:

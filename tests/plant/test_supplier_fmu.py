@@ -93,6 +93,40 @@ def test_supplier_car_drives_a_scenario_through_its_mapping_alone(pythonfmu_cars
     assert any("'speed_kmh'" in w and "declares no unit" in w and "km/h" in w for w in run.warnings)
 
 
+def test_the_recording_holds_the_fmus_truth_and_its_checks(pythonfmu_cars, tmp_path):
+    """``bench synth`` of the scenario as a file: the recorded truth is the FMU's pose, the
+    plant metadata says where the truth came from, the misfits and the missing units."""
+    from bench.record.reader import RecordingReader
+
+    fmu = pythonfmu_cars["planar"]
+    doc = _scenario(fmu, MAPPING)
+    lines = ['[scenario]', 'id = "PLANAR"', 'title = "a supplier\'s planar car"', "[initial]"]
+    lines += [f"{k} = {v!r}".replace("'", '"') for k, v in doc["initial"].items()]
+    lines += ["[plant]"] + [f'{k} = "{v}"' for k, v in doc["plant"].items()]
+    lines += ["[[command]]", 'at = "0 s"', "throttle = 0.5", "[[command]]", 'at = "10 s"',
+              'steering = { to = "7.7 deg", over = "1 s" }', "[[command]]", 'at = "24 s"',
+              'steering = { to = "0 deg", over = "1 s" }', "throttle = 0.6"]
+    scenario = tmp_path / "planar.toml"
+    scenario.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "planar.mcap"
+    assert bench(["synth", str(scenario), "-o", str(out), "-q"]) == 0
+    reader = RecordingReader(out)
+    plant = reader.metadata()["plant"]
+    assert plant["truth_from"] == "the FMU's position and heading" and plant["model"] == "PlanarCar"
+    assert plant["misfit_velocity"].startswith("rms ") and "misfit_heading_rate" in plant
+    assert "'speed_kmh'" in plant["mapping_warnings"] and "declares no unit" in plant["mapping_warnings"]
+    truth = reader.read_columnar("/truth")[1:-1]  # the FMU's outputs after each step, but the last (_drive)
+    _, _, t, y = _drive(fmu, MAPPING)
+    rows = np.rint(truth["t_ns"] / 1e6).astype(int) - 1  # FMU rows: after step k + 1
+    assert np.allclose(t[rows], truth["t_ns"] / 1e9, rtol=0, atol=1e-12)
+    lat0, lon0 = math.radians(39.84991), math.radians(116.17715)
+    enu = geodetic_to_local(truth["lat"], truth["lon"], truth["h"], lat0, lon0, 60.0)
+    assert np.hypot(enu[:, 0] - y[rows, 0], enu[:, 1] - y[rows, 1]).max() < 1e-4
+    heading = 0.5 * math.pi - y[rows, 2]
+    assert np.degrees(np.abs(np.angle(np.exp(1j * (truth["euler"][:, 0] - heading))))).max() < 5e-3
+    assert np.abs(np.linalg.norm(truth["vel_n"], axis=1) - y[rows, 3] / 3.6).max() < 1e-2
+
+
 def test_supplier_car_integrated_from_its_rates_alone(pythonfmu_cars, tmp_path):
     """The same car mapped by speed (km/h forward, constants sideways and up) and yaw rate
     (deg/s) only: the bench integrates them (measured: 0.28 mm straight, 9.9 mm at most over
