@@ -17,8 +17,13 @@ error, 3 a check failed (the FMU does not run, the mapping does not fit, no trus
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from bench.plant.manifest import FmuTrust
+    from bench.plant.mapping import PlantMapping
 
 __all__ = ["register"]
 
@@ -156,7 +161,8 @@ def _check(args: argparse.Namespace) -> int:
     return 3 if failed else 0
 
 
-def _mapped_run(args: argparse.Namespace, path: Path, mapping: Any, trust: Any, report: Any) -> None:
+def _mapped_run(args: argparse.Namespace, path: Path, mapping: PlantMapping, trust: FmuTrust,
+                report: Callable[..., None]) -> None:
     """A short run through the mapping (start state: heading 0, at rest, at 0 N 0 E): the
     truth it gives and the misfit of the FMU's pose to its own rates."""
     import math

@@ -121,12 +121,9 @@ class PlantMapping:
             return ch.constant(n) if ch.var is None else np.asarray(ch.to_bench(raw[:, col[ch.var]]))
 
         out = {"pitch": one(self.pitch), "roll": one(self.roll)}
-        if self.velocity is not None:
-            out["vel_b"] = self.velocity.to_rfu([raw[:, col[c.var]] if c.var else raw[:, 0] for c in
-                                                 self.velocity.components])
-        if self.angular_rate is not None:
-            out["omega_nb_b"] = self.angular_rate.to_rfu([raw[:, col[c.var]] if c.var else raw[:, 0] for c in
-                                                          self.angular_rate.components])
+        for name, vec in (("vel_b", self.velocity), ("omega_nb_b", self.angular_rate)):
+            if vec is not None:
+                out[name] = vec.to_rfu([raw[:, col[c.var]] if c.var else np.zeros(n) for c in vec.components])
         if self.heading is not None:
             out["psi"] = one(self.heading)
         if self.position is not None:
