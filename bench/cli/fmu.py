@@ -143,7 +143,8 @@ def _check(args: argparse.Namespace) -> int:
     if trust.verified:
         report(True, f"SHA-256 trusted: {trust.sha256[:16]}... matches {trust.source}")
     else:
-        print(f"WARN  SHA-256 {trust.sha256[:16]}... NOT verified: loading its native code because of --trust-fmu")
+        report(False, f"SHA-256 {trust.sha256[:16]}... NOT verified: loading its native code because of --trust-fmu",
+               warn=True)
     runs = False
     if desc.co_simulation:
         outputs = [v.name for v in desc.of_causality("output") if v.type == "Float64"]
