@@ -18,10 +18,9 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
-import io
+import os
 import shutil
-import tempfile
-import zipfile
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from bench.errors import PlantError
-from bench.plant.manifest import FmuTrust, trusted_bytes, verify_fmu
+from bench.plant.manifest import FmuTrust, extract_trusted
 
 __all__ = ["Variable", "FmuDescription", "read_description", "validate", "simulate", "FmuInstance"]
 
@@ -124,35 +123,32 @@ def validate(path: str | Path) -> list[str]:
     return list(validate_fmu(str(path)))
 
 
-def _extract_trusted(path: Path, trust: FmuTrust | None) -> str:
-    """A temporary folder holding the FMU's contents, unpacked from bytes checked against
-    ``trust`` (by default: the build's manifest)."""
-    trust = trust if trust is not None else verify_fmu(path)
-    if Path(trust.path).resolve() != Path(path).resolve():
-        raise PlantError(f"{path}: the trust given is for another file ({trust.path})")
-    data = trusted_bytes(trust)
-    folder = tempfile.mkdtemp(prefix="bench_fmu_")
+@contextlib.contextmanager
+def _keep_cwd() -> Iterator[None]:
+    """Restore the working directory: fmpy changes into the FMU's binary folder to load it
+    and stays there when the load fails (a corrupted library), a folder removed next."""
+    cwd = os.getcwd()
     try:
-        with zipfile.ZipFile(io.BytesIO(data)) as zf:
-            zf.extractall(folder)
-    except (zipfile.BadZipFile, OSError, ValueError) as exc:
-        shutil.rmtree(folder, ignore_errors=True)
-        raise PlantError(f"{path}: cannot unpack the FMU: {exc}") from None
-    return folder
+        yield
+    finally:
+        if os.getcwd() != cwd:
+            os.chdir(cwd)
 
 
 def simulate(
     path: str | Path, stop_time: float, step: float, outputs: list[str] | None = None, *, trust: FmuTrust | None = None
 ) -> np.ndarray:
     """A run with ``fmpy.simulate_fmu`` of the trusted bytes of ``path`` (see the module
-    docstring)."""
+    docstring). fmpy's validation is not repeated here (:func:`validate` reports it): a model
+    description the validator objects to may still describe an FMU that runs."""
     from fmpy import simulate_fmu
 
-    folder = _extract_trusted(Path(path), trust)
+    folder = extract_trusted(Path(path), trust)
     try:
-        return simulate_fmu(
-            folder, stop_time=stop_time, output_interval=step, step_size=step, output=outputs, validate=True
-        )
+        with _keep_cwd():
+            return simulate_fmu(
+                folder, stop_time=stop_time, output_interval=step, step_size=step, output=outputs, validate=False
+            )
     except Exception as exc:
         raise PlantError(f"{path}: simulation with fmpy failed: {exc}") from None
     finally:
@@ -196,8 +192,9 @@ class FmuInstance:
     # -- life cycle --------------------------------------------------------------------
     def open(self, start_time: float = 0.0) -> FmuInstance:
         """Check, extract, load and instantiate; the instance is then in initialization mode."""
-        self._dir = _extract_trusted(self.desc.path, self.trust)
+        self._dir = extract_trusted(self.desc.path, self.trust)
         v3 = self.desc.fmi_version == "3.0"
+        cwd = os.getcwd()
         try:
             md_guid = self._guid()
             if v3:
@@ -247,6 +244,9 @@ class FmuInstance:
             msg = self._fail_message(f"cannot instantiate: {exc}")
             self.close()
             raise PlantError(msg) from None
+        finally:
+            if os.getcwd() != cwd:  # fmpy stays in the binary folder when the load fails
+                os.chdir(cwd)
         self._state = "init"
         return self
 

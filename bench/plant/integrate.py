@@ -105,11 +105,16 @@ class BodyIntegrator:
         self.kept = IntegratedSamples()
 
     def push(self, t: np.ndarray, q: dict[str, np.ndarray]) -> None:
-        """A block of samples at times ``t`` (N,) with bench quantities ``q`` (SI, RFU)."""
-        vel_b, w = q["vel_b"], q["omega_nb_b"]
+        """A block of samples at times ``t`` (N,) with bench quantities ``q`` (SI, RFU): ``vel_b``,
+        ``pitch``, ``roll`` and ``omega_nb_b``, or the FMU's own continuous heading ``psi``."""
+        vel_b = q["vel_b"]
         theta, gamma = q["pitch"], q["roll"]
-        psi_dot = (np.sin(gamma) * w[:, 0] - np.cos(gamma) * w[:, 2]) / np.cos(theta)
-        psi = self._psi.push(psi_dot)
+        if "psi" in q:  # the FMU's own heading (continuous), not integrated
+            psi = q["psi"]
+        else:
+            w = q["omega_nb_b"]
+            psi_dot = (np.sin(gamma) * w[:, 0] - np.cos(gamma) * w[:, 2]) / np.cos(theta)
+            psi = self._psi.push(psi_dot)
         C = euler_to_dcm(psi, theta, gamma)
         vel_n = np.einsum("nij,nj->ni", C, vel_b)
         h = self._h.push(vel_n[:, 2])

@@ -22,7 +22,11 @@ file cannot be swapped between the check and the load.
 from __future__ import annotations
 
 import hashlib
+import io
 import re
+import shutil
+import tempfile
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -30,7 +34,7 @@ from bench.errors import ConfigError, PlantError
 from bench.paths import fmu_dir
 
 __all__ = ["FmuTrust", "sha256_file", "read_manifest", "build_manifest", "verify_fmu", "trusted_bytes",
-           "MANIFEST_NAME"]
+           "MANIFEST_NAME", "extract_trusted"]
 
 MANIFEST_NAME = "SHA256SUMS"
 _LINE = re.compile(r"^([0-9a-fA-F]{64})\s+\*?(.+?)\s*$")
@@ -150,3 +154,20 @@ def trusted_bytes(trust: FmuTrust) -> bytes:
         raise PlantError(f"{trust.path}: the file changed after its SHA-256 was checked ({trust.source}); "
                          "refusing to load its native code")
     return data
+
+
+def extract_trusted(path: Path, trust: FmuTrust | None) -> str:
+    """A temporary folder holding the FMU's contents, unpacked from bytes checked against
+    ``trust`` (by default: the build's manifest); the caller removes it."""
+    trust = trust if trust is not None else verify_fmu(path)
+    if Path(trust.path).resolve() != Path(path).resolve():
+        raise PlantError(f"{path}: the trust given is for another file ({trust.path})")
+    data = trusted_bytes(trust)
+    folder = tempfile.mkdtemp(prefix="bench_fmu_")
+    try:
+        with zipfile.ZipFile(io.BytesIO(data)) as zf:
+            zf.extractall(folder)
+    except (zipfile.BadZipFile, OSError, ValueError) as exc:
+        shutil.rmtree(folder, ignore_errors=True)
+        raise PlantError(f"{path}: cannot unpack the FMU: {exc}") from None
+    return folder

@@ -12,7 +12,7 @@
     # sha256 = "<64 hex>"             # the FMU's expected SHA-256 (default: fmu/build/SHA256SUMS)
     # trust = "unverified"            # explicit opt-in to an FMU with no trusted hash (recorded)
 
-The start position and heading come from ``[initial]``, the default surface and sky
+The start position, heading and speed come from ``[initial]``, the default surface and sky
 view from ``[defaults]``. :func:`plant_trajectory` runs the plant and returns the truth.
 """
 
@@ -88,6 +88,10 @@ def plant_setup(doc: Mapping[str, Any], *, file: str, base: Path) -> PlantSetup:
     lon0 = parse_latlon(init["longitude"], "lon", file=file, key="initial.longitude")
     h0 = quantity(init.get("height", 0.0), "length", "m", file=file, key="initial.height")
     heading0 = quantity(init.get("heading", 0.0), "angle", "deg", file=file, key="initial.heading")
+    speed0 = quantity(init.get("speed", 0.0), "velocity", "m/s", file=file, key="initial.speed")
+    if speed0 != 0.0 and "speed" not in mapping.start:
+        raise ConfigError(f"a start speed needs the FMU's start-speed parameter in the mapping's [start] speed "
+                          f"({mapping.source})", file=file, key="initial.speed")
     defaults = doc.get("defaults", {})
     script = parse_commands(
         doc.get("command"), duration, file=file, surface=defaults.get("surface", "asphalt"),
@@ -111,7 +115,7 @@ def plant_setup(doc: Mapping[str, Any], *, file: str, base: Path) -> PlantSetup:
         fmu=fmu, mapping=mapping, script=script, lat0=lat0, lon0=lon0, h0=h0, heading0=heading0, step_s=step,
         decimate=decimate, parameters=params, surfaces=vehicle.surfaces if vehicle else {},
         heading_parameter=vehicle.heading_parameter if vehicle else None,
-        sha256=sha256, unverified=trust == "unverified", source=file,
+        sha256=sha256, unverified=trust == "unverified", source=file, speed0=speed0,
     )
 
 

@@ -206,6 +206,7 @@ class RunSource:
                     "steps": str(plant.steps),
                     "step_s": f"{plant.step_s:g}",
                     "log_tail": list(plant.log[-20:]),
+                    **(plant.record() if callable(getattr(plant, "record", None)) else {}),
                 },
             )
         for src in self.suite.sources():

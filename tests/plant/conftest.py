@@ -46,3 +46,23 @@ def foreign_fmu(tmp_path_factory) -> Path:
     (fmu,) = mod.build_model(DATA / "foreign", out, ["2"])
     mod.write_manifest(out, [fmu])
     return fmu
+
+
+def build_pythonfmu(source: Path, out: Path) -> Path:
+    """An FMI 2.0 co-simulation FMU built by pythonfmu from one Python source file (the
+    module name is the file's: give each model its own, the FMUs share the interpreter)."""
+    pytest.importorskip("pythonfmu")
+    from pythonfmu.builder import FmuBuilder
+
+    return Path(FmuBuilder.build_FMU(source, dest=out))
+
+
+@pytest.fixture(scope="session")
+def pythonfmu_cars(tmp_path_factory) -> dict[str, Path]:
+    """The supplier-style pythonfmu FMUs of tests/plant/data/planar, built once per session:
+    ``planar`` (a planar car that runs) and ``broken`` (its step raises). They run inside
+    this Python process: pythonfmu's binary takes the interpreter's symbols from the host
+    process (no libpython is loaded or needed beside it)."""
+    out = tmp_path_factory.mktemp("pythonfmu")
+    return {"planar": build_pythonfmu(DATA / "planar" / "planar_car.py", out),
+            "broken": build_pythonfmu(DATA / "planar" / "broken_car.py", out)}

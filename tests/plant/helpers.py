@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.plant.fmi import FmuInstance, read_description
+from bench.plant.manifest import FmuTrust
 
 
 def run_fmu(
@@ -18,13 +19,15 @@ def run_fmu(
     params: dict[str, float] | None = None,
     changes: dict[float, dict[str, float]] | None = None,
     h: float = 1e-3,
+    trust: FmuTrust | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Times (N,) and outputs (N, len(outputs)) after each step; ``changes`` set inputs at times."""
+    """Times (N,) and outputs (N, len(outputs)) after each step; ``changes`` set inputs at times;
+    ``trust``: the FMU's checked hash (default: the build's manifest must list it)."""
     desc = read_description(path)
     n = round(seconds / h)
     buf = np.empty((n, len(outputs)))
     cuts = sorted((round(t / h), v) for t, v in (changes or {}).items())
-    with FmuInstance(desc).open() as inst:
+    with FmuInstance(desc, trust=trust).open() as inst:
         inst.set(params or {})
         inst.set(inputs or {})
         inst.exit_initialization()
