@@ -27,13 +27,26 @@ from scipy.interpolate import BSpline
 from bench.config.files import read_text
 from bench.errors import ConfigError
 from bench.nav import earth
-from bench.scenario.track_fit import FitReport, Rejected, Stationary, TrackFit, fit_spline, hold, hold_ramp, limit_turn, robust_position_fit, stationary_intervals
+from bench.scenario.track_fit import (
+    FitReport,
+    Rejected,
+    Stationary,
+    TrackFit,
+    fit_spline,
+    hold,
+    hold_ramp,
+    limit_turn,
+    robust_position_fit,
+    stationary_intervals,
+)
 from bench.scenario.trajectory import Kinematics, SegmentInfo, Trajectory
-
 
 _D = TrackFit()
 
-__all__ = ["Track", "SampledTrajectory", "read_smartloc", "read_csv_track", "read_track"]
+__all__ = [
+    "Track", "SampledTrajectory", "TrackFit", "FitReport", "Rejected", "Stationary",
+    "read_smartloc", "read_csv_track", "read_track",
+]
 
 
 @dataclass
@@ -313,7 +326,16 @@ class SampledTrajectory(Trajectory):
         return self._t0
 
 
-def _report(source, t, off, splines, smoothing, rejected, stops) -> FitReport:
+def _report(
+    source: str,
+    t: np.ndarray,
+    off: np.ndarray,
+    splines: list[BSpline],
+    smoothing: float,
+    rejected: np.ndarray,
+    stops: list[tuple[float, float]],
+) -> FitReport:
+    """The fit's residuals (m) at the samples ``off`` (N, 3) at times ``t`` (N,)."""
     fitted = np.stack([s(t) for s in splines], axis=-1)
     r = np.linalg.norm(fitted - off, axis=1)
     good = ~rejected
@@ -321,6 +343,7 @@ def _report(source, t, off, splines, smoothing, rejected, stops) -> FitReport:
     spreads = []
     for a, b in stops:
         m = (t >= a) & (t <= b)
-        spreads.append(Stationary(a, b, float(r[m].max())))
+        ramp = hold_ramp(a, b)
+        spreads.append(Stationary(a, b, a + ramp, b - ramp, float(r[m].max())))
     return FitReport(source, len(t), smoothing, float(np.sqrt(np.mean(r[good] ** 2))), float(r[i_max]), float(t[i_max]),
                      tuple(Rejected(float(t[i]), float(r[i])) for i in np.flatnonzero(rejected)), tuple(spreads))

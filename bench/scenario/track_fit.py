@@ -68,8 +68,8 @@ class TrackFit:
     smoothing: float = 0.05
     attitude_smoothing: float = 0.0
     min_speed: float = 0.5
-    huber: float = 2.0
-    reject: float = 10.0
+    huber: float = 4.0
+    reject: float = 12.0
     stop_speed: float = 0.3
     stop_time: float = 1.0
     turn_radius: float = 5.0
@@ -90,11 +90,15 @@ class Rejected:
 
 @dataclass(frozen=True)
 class Stationary:
-    """An interval (s from the track's start) where the fit holds still; ``spread_m`` is
-    the largest distance of a sample in it from the held position."""
+    """A stop (s from the track's start): ``start``-``end`` where the data's speed stays
+    below the threshold; the fit stands exactly still over ``still_from``-``still_to``
+    (joining the moving curve over the rest); ``spread_m`` is the largest distance of a
+    sample in the stop from the fit."""
 
     start: float
     end: float
+    still_from: float
+    still_to: float
     spread_m: float
 
 
@@ -121,7 +125,8 @@ class FitReport:
             f"  rejected {len(self.rejected)} sample(s)"
             + (": " + ", ".join(f"{r.t:.2f} s ({r.size_m:.2f} m)" for r in self.rejected) if self.rejected else ""),
             f"  stationary {len(self.stationary)} interval(s)"
-            + (": " + ", ".join(f"{s.start:.2f}-{s.end:.2f} s (spread {s.spread_m:.2f} m)"
+            + (": " + ", ".join(f"{s.start:.2f}-{s.end:.2f} s (still {s.still_from:.2f}-{s.still_to:.2f} s, "
+                                f"spread {s.spread_m:.2f} m)"
                                 for s in self.stationary) if self.stationary else ""),
         ]
         return out
@@ -136,7 +141,8 @@ class FitReport:
             "max_m": self.max_m,
             "t_max": self.t_max,
             "rejected": [{"t": r.t, "size_m": r.size_m} for r in self.rejected],
-            "stationary": [{"start": s.start, "end": s.end, "spread_m": s.spread_m} for s in self.stationary],
+            "stationary": [{"start": s.start, "end": s.end, "still_from": s.still_from, "still_to": s.still_to,
+                            "spread_m": s.spread_m} for s in self.stationary],
         }
 
 
