@@ -13,7 +13,8 @@ share their sample times). Two misfits against the car's sensors:
 
 ``old`` is the fit as it was before glitch rejection and stationary holds (plain
 least-squares quintic smoothing spline, 5 cm, the documented setting): 3.82 deg/s and
-0.17 m/s. ``new`` is the [track] table's defaults. The odom3 records are a copy of the
+0.170 m/s. ``new`` is the [track] table's defaults (:class:`~bench.scenario.track_fit.TrackFit`):
+1.78 deg/s and 0.152 m/s. The odom3 records are a copy of the
 input file's ``odom3`` lines (``tests/data/smartloc_berlin_potsdamer_platz_odom.txt``).
 
     PYTHONPATH=. .venv/bin/python benchmarks/track_berlin_fit.py [--method old|new|both] [--report]

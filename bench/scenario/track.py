@@ -6,7 +6,8 @@ from the first point, for precision) and to the Euler angles, so that velocity,
 acceleration and angular rates are analytic derivatives of one smooth curve and the IMU
 increments derived from them are consistent with the positions. When no attitude is
 given, heading and pitch follow the direction of travel (held through stops) and roll is
-zero.
+zero. With smoothing, glitches are rejected and stops held still
+(:mod:`bench.scenario.track_fit`); every fit carries a :class:`FitReport` (``fit_report``).
 
 Readers for the formats users bring: smartLoc ground truth (``point3 t x y z``), and CSV
 with a header naming its columns (``t, lat, lon, h[, heading, pitch, roll]`` in degrees,
@@ -217,9 +218,17 @@ class SampledTrajectory(Trajectory):
         heading when it is not.
     min_speed:
         Below this horizontal speed (m/s) the derived heading is held.
+    huber, reject, stop_speed, stop_time, turn_radius:
+        The robust fit (:class:`~bench.scenario.track_fit.TrackFit`; the defaults are its
+        real-track defaults). Reweighting, rejection and stops apply only with
+        ``smoothing`` above 0; ``turn_radius`` to a heading derived from the motion.
+        ``SampledTrajectory(track, **TrackFit().kwargs())`` is a ``[track]`` table's fit.
     segments:
         Flags for stretches of the track; one stretch covering it all by default.
     """
+
+    #: How the fit meets the samples: residuals, rejected samples, stops.
+    fit_report: FitReport
 
     def __init__(
         self,

@@ -16,6 +16,9 @@ acceleration synthesized from it show tens of deg/s where the car did not turn. 
   ``stop_time``, the vehicle is taken as stopped: the fitted spline is exactly constant
   there (at the median of the samples), so velocity and acceleration are zero and the
   heading is held; an IMU synthesized from it shows no rotation.
+* **Turn limit.** A heading derived from the direction of travel changes by at most the
+  distance travelled over ``turn_radius`` (:func:`limit_turn`): a road vehicle turns
+  only as it moves, so the swings of a slow, noisy direction of travel are noise.
 * **A report** (:class:`FitReport`) per fit: the RMS and largest residual, every rejected
   sample with its time and size, the stationary intervals with their spread.
 
