@@ -9,7 +9,8 @@ acceleration synthesized from it show tens of deg/s where the car did not turn. 
   smoothing spline: a Huber weight on each sample's 3-D residual (full weight within
   ``huber`` x ``smoothing``, falling as 1/r beyond) lets a glitch pull the curve less
   than a good sample does; then samples whose residual still exceeds ``reject`` x
-  ``smoothing`` are dropped, worst first, one at a time, refitting in between. A clean
+  ``smoothing`` are dropped, the worst of each neighbourhood (two samples either side)
+  at a time, refitting in between. A clean
   track's residuals stay within a few ``smoothing``, so nothing is dropped from it.
 * **Stationary holds.** Where the speed of the data (the least-squares slope of the
   positions over a window of ``stop_time``) stays below ``stop_speed`` for at least
@@ -278,10 +279,14 @@ def robust_position_fit(
     if reject > 0.0:
         while keep.sum() > 6:
             r = np.where(keep, residual(splines), 0.0)
-            worst = int(np.argmax(r))
-            if r[worst] <= reject * sigma:
+            # the worst of each neighbourhood (two samples either side): a glitch pulls the
+            # curve off its neighbours too, so they wait for the refit without it
+            pad = np.pad(r, 2)
+            peak = r >= np.max(np.lib.stride_tricks.sliding_window_view(pad, 5), axis=1)
+            out = keep & peak & (r > reject * sigma)
+            if not out.any() or keep.sum() - out.sum() < 6:
                 break
-            keep[worst] = False
+            keep &= ~out
             splines = fit()
     for i, j in stops:
         splines = [hold(s, t[i], t[j], float(y[i, a]), hold_ramp(t[i], t[j])) for a, s in enumerate(splines)]

@@ -176,3 +176,35 @@ turn_radius = "0 m"
     p.write_text(p.read_text().replace('turn_radius = "0 m"', 'turn_radius = "-1 m"'))
     with pytest.raises(ConfigError, match="at least 0"):
         load_scenario(p).trajectory()
+
+
+def test_several_glitches_are_each_rejected_and_nothing_else():
+    tr, _ = synthetic()
+    rng = np.random.default_rng(11)
+    times = [12.0, 30.4, 30.8, 75.0, 101.2]  # two close together
+    for tg in times:
+        i = int(np.argmin(np.abs(tr.t - tg)))
+        d = rng.standard_normal(3)
+        tr.xyz_e[i] += 3.0 * d / np.linalg.norm(d)
+    rep = SampledTrajectory(tr, **TrackFit().kwargs()).fit_report
+    assert [round(r.t, 1) for r in rep.rejected] == times
+    assert all(2.0 < r.size_m < 4.0 for r in rep.rejected)
+
+
+def test_bench_synth_prints_the_fit_report_of_a_track(tmp_path, data_dir, capsys):
+    from bench.cli import main
+
+    p = tmp_path / "berlin.toml"
+    p.write_text(f"""
+[scenario]
+id = "BERLIN"
+[track]
+file = "{data_dir / "smartloc_berlin_potsdamer_platz_gt.txt"}"
+format = "smartloc"
+start = "160 s"
+end = "180 s"
+""")
+    assert main(["synth", str(p), "-o", str(tmp_path / "b.mcap"), "-q"]) == 0
+    out = capsys.readouterr().out
+    assert "track fit " in out and "residual RMS" in out and "rejected 0 sample(s)" in out
+    assert "stationary 1 interval(s): 11.70-12.90 s" in out  # the stop at 172 s, from the crop's start
