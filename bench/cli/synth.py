@@ -46,6 +46,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _run(args: argparse.Namespace) -> int:
     from bench.record.lock import preflight
     from bench.scenario.loader import load_scenario
+    from bench.scenario.track import SampledTrajectory
     from bench.sensors.suite import fault_schedule
     from bench.synth import SynthOptions, synthesize
 
@@ -63,6 +64,9 @@ def _run(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(f"bench synth: building the {scenario.id} trajectory ...", file=sys.stderr)
     traj = scenario.trajectory()
+    if "track" in scenario.doc and isinstance(traj, SampledTrajectory):
+        for line in traj.fit_report.lines():  # how the recorded track was fitted
+            print(line)
     with progress_bar(f"synth {scenario.id}", traj.duration_s, enabled=not args.quiet) as bar:
         summary = synthesize(scenario, args.output, options, trajectory=traj, progress=bar, overwrite=args.force)
     print(

@@ -51,7 +51,10 @@ class TruthTrack:
     offset_ns:
         Added to the track's times, ns.
     smoothing:
-        1-sigma position noise of the track, m (0: the spline passes through every sample).
+        1-sigma position noise of the track, m (0: the spline passes through every sample;
+        above 0 the fit rejects glitches and holds stops with the defaults of
+        :class:`~bench.scenario.track_fit.TrackFit`, and :meth:`TruthWriter.describe`
+        summarizes its report).
     rate_hz:
         Rate of the ``/truth`` records.
     """
@@ -106,10 +109,15 @@ class TruthWriter:
     def describe(self) -> str:
         """One line for ``run_start``."""
         t = self.track
+        rep = self.traj.fit_report
+        fit = "" if t.smoothing <= 0.0 else (
+            f" (residual RMS {rep.rms_m:.3f} m, {len(rep.rejected)} samples rejected, "
+            f"{len(rep.stationary)} stops held)"
+        )
         return (
             f"{t.path} ({t.format}), track time {'UTC' if t.time == 'utc' else 'as bench time'}"
             f"{f' + {t.offset_ns / 1e9:g} s' if t.offset_ns else ''}: bench {self.zero_ns / 1e9:.3f} .. "
-            f"{self.end_ns / 1e9:.3f} s, {t.rate_hz:g} Hz, smoothing {t.smoothing:g} m"
+            f"{self.end_ns / 1e9:.3f} s, {t.rate_hz:g} Hz, smoothing {t.smoothing:g} m{fit}"
         )
 
     def declare(self, rec: RecordingWriter) -> None:

@@ -24,7 +24,7 @@ from bench.scenario.script_values import check_script_size
 from bench.scenario.trajectory import SegmentInfo, Trajectory
 from bench.units import quantity
 
-__all__ = ["Scenario", "load_scenario", "find_scenario", "read_toml", "check_script_size"]
+__all__ = ["Scenario", "load_scenario", "find_scenario", "read_toml", "check_script_size", "track_fit"]
 
 _TOP_KEYS = {
     "scenario",
@@ -138,7 +138,7 @@ def _track_trajectory(sc: Scenario) -> Trajectory:
     t = sc.doc["track"]
     if not isinstance(t, Mapping):
         raise ConfigError("expected a [track] table", file=file, key="track")
-    allowed = {"file", "format", "smoothing", "attitude_smoothing", "min_speed", "start", "end"}
+    allowed = {"file", "format", "start", "end", *_TRACK_FIT}
     check_keys(t, allowed, file=file, key="track")
     if "file" not in t:
         raise ConfigError("missing field", file=file, key="track.file")
@@ -159,11 +159,37 @@ def _track_trajectory(sc: Scenario) -> Trajectory:
     duration = float(track.t[-1] - track.t[0]) if len(track.t) else 0.0
     check("duration", duration, file=file, key="track.file", shown=f"{duration:g} s of track in {src}")
     return SampledTrajectory(
-        track,
-        smoothing=quantity(t.get("smoothing", 0.0), "length", "m", file=file, key="track.smoothing"),
-        attitude_smoothing=quantity(
-            t.get("attitude_smoothing", 0.0), "angle", "deg", file=file, key="track.attitude_smoothing"
-        ),
-        min_speed=quantity(t.get("min_speed", 0.5), "velocity", "m/s", file=file, key="track.min_speed"),
-        segments=[SegmentInfo(0, "track", 0.0, duration, gnss=gnss, surface=surface)],
+        track, **track_fit(t, file=file), segments=[SegmentInfo(0, "track", 0.0, duration, gnss=gnss, surface=surface)]
     )
+
+
+#: The fit settings of a [track] table: (dimension, unit of a bare number) of each key.
+_TRACK_FIT = {
+    "smoothing": ("length", "m"),
+    "attitude_smoothing": ("angle", "deg"),
+    "min_speed": ("velocity", "m/s"),
+    "huber": ("dimensionless", "1"),
+    "reject": ("dimensionless", "1"),
+    "stop_speed": ("velocity", "m/s"),
+    "stop_time": ("time", "s"),
+    "turn_radius": ("length", "m"),
+}
+
+
+def track_fit(table: Mapping[str, Any], *, file: str | None = None) -> dict[str, float]:
+    """The fit settings of a ``[track]`` table (SI), :class:`~bench.scenario.track_fit.TrackFit`'s
+    defaults where a key is absent; each finite and not negative."""
+    from bench.scenario.track_fit import TrackFit
+
+    out = TrackFit().kwargs()
+    for key, (dim, unit) in _TRACK_FIT.items():
+        if key in table:
+            v = quantity(table[key], dim, unit, file=file, key=f"track.{key}")
+            if v < 0.0:
+                raise ConfigError(
+                    f"expected a value of at least 0, found {table[key]!r}", file=file, key=f"track.{key}"
+                )
+            out[key] = v
+    if out["stop_speed"] > 0.0 and out["stop_time"] <= 0.0:
+        raise ConfigError("expected a positive time with stop_speed set", file=file, key="track.stop_time")
+    return out

@@ -6,7 +6,8 @@ from the first point, for precision) and to the Euler angles, so that velocity,
 acceleration and angular rates are analytic derivatives of one smooth curve and the IMU
 increments derived from them are consistent with the positions. When no attitude is
 given, heading and pitch follow the direction of travel (held through stops) and roll is
-zero.
+zero. With smoothing, glitches are rejected and stops held still
+(:mod:`bench.scenario.track_fit`); every fit carries a :class:`FitReport` (``fit_report``).
 
 Readers for the formats users bring: smartLoc ground truth (``point3 t x y z``), and CSV
 with a header naming its columns (``t, lat, lon, h[, heading, pitch, roll]`` in degrees,
@@ -22,14 +23,31 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import BSpline, make_interp_spline, make_splrep
+from scipy.interpolate import BSpline
 
 from bench.config.files import read_text
 from bench.errors import ConfigError
 from bench.nav import earth
+from bench.scenario.track_fit import (
+    FitReport,
+    Rejected,
+    Stationary,
+    TrackFit,
+    fit_spline,
+    hold,
+    hold_ramp,
+    limit_turn,
+    robust_position_fit,
+    stationary_intervals,
+)
 from bench.scenario.trajectory import Kinematics, SegmentInfo, Trajectory
 
-__all__ = ["Track", "SampledTrajectory", "read_smartloc", "read_csv_track", "read_track"]
+_D = TrackFit()
+
+__all__ = [
+    "Track", "SampledTrajectory", "TrackFit", "FitReport", "Rejected", "Stationary",
+    "read_smartloc", "read_csv_track", "read_track",
+]
 
 
 @dataclass
@@ -183,11 +201,7 @@ class _Triple:
         return np.stack([s(t) for s in self.splines], axis=-1)
 
 
-def _fit(t: np.ndarray, y: np.ndarray, sigma: float) -> BSpline:
-    """Quintic spline through (t, y), smoothing to residual ``sigma`` (0 interpolates)."""
-    if sigma <= 0.0:
-        return make_interp_spline(t, y, k=5)
-    return make_splrep(t, y, k=5, s=len(t) * sigma**2)
+_fit = fit_spline
 
 
 class SampledTrajectory(Trajectory):
@@ -204,9 +218,17 @@ class SampledTrajectory(Trajectory):
         heading when it is not.
     min_speed:
         Below this horizontal speed (m/s) the derived heading is held.
+    huber, reject, stop_speed, stop_time, turn_radius:
+        The robust fit (:class:`~bench.scenario.track_fit.TrackFit`; the defaults are its
+        real-track defaults). Reweighting, rejection and stops apply only with
+        ``smoothing`` above 0; ``turn_radius`` to a heading derived from the motion.
+        ``SampledTrajectory(track, **TrackFit().kwargs())`` is a ``[track]`` table's fit.
     segments:
         Flags for stretches of the track; one stretch covering it all by default.
     """
+
+    #: How the fit meets the samples: residuals, rejected samples, stops.
+    fit_report: FitReport
 
     def __init__(
         self,
@@ -215,6 +237,11 @@ class SampledTrajectory(Trajectory):
         smoothing: float = 0.0,
         attitude_smoothing: float = 0.0,
         min_speed: float = 0.5,
+        huber: float = _D.huber,
+        reject: float = _D.reject,
+        stop_speed: float = _D.stop_speed,
+        stop_time: float = _D.stop_time,
+        turn_radius: float = _D.turn_radius,
         segments: list[SegmentInfo] | None = None,
     ):
         tr = track.cleaned()
@@ -225,7 +252,13 @@ class SampledTrajectory(Trajectory):
         self.duration_s = float(t[-1])
         self._origin = tr.xyz_e[0].copy()
         off = tr.xyz_e - self._origin
-        self._pos = [_fit(t, off[:, i], smoothing) for i in range(3)]
+        stops = stationary_intervals(t, off, stop_speed, stop_time) if smoothing > 0.0 else []
+        if smoothing > 0.0:
+            self._pos, rejected = robust_position_fit(t, off, smoothing, huber=huber, reject=reject, stops=stops)
+        else:
+            self._pos, rejected = [_fit(t, off[:, i], 0.0) for i in range(3)], np.zeros(len(t), dtype=bool)
+        self._stops = [(float(t[i]), float(t[j])) for i, j in stops]
+        self.fit_report = _report(tr.source, t, off, self._pos, smoothing, rejected, self._stops)
         self._vel = [s.derivative(1) for s in self._pos]
         self._acc = [s.derivative(2) for s in self._pos]
         self._segments = segments or [SegmentInfo(0, "track", 0.0, self.duration_s)]
@@ -234,13 +267,16 @@ class SampledTrajectory(Trajectory):
             eul[:, 0] = np.unwrap(eul[:, 0])
             eul[:, 2] = np.unwrap(eul[:, 2])
             self._att = [_fit(t, eul[:, i], attitude_smoothing) for i in range(3)]
+            for a, b in self._stops:  # held at the fit's value mid-stop
+                mid = np.array([(a + b) / 2.0])
+                self._att = [hold(s, a, b, float(s(mid)[0]), hold_ramp(a, b)) for s in self._att]
         else:
-            self._att = self._attitude_from_motion(min_speed, attitude_smoothing)
+            self._att = self._attitude_from_motion(min_speed, attitude_smoothing, turn_radius)
         self._att_rate = [s.derivative(1) for s in self._att]
         self._g_pos, self._g_vel, self._g_acc, self._g_att, self._g_rate = (
             _Triple(g) for g in (self._pos, self._vel, self._acc, self._att, self._att_rate))
 
-    def _attitude_from_motion(self, min_speed: float, sigma: float) -> list[BSpline]:
+    def _attitude_from_motion(self, min_speed: float, sigma: float, turn_radius: float) -> list[BSpline]:
         n = max(math.ceil(self.duration_s * 10.0) + 1, 8)
         tg = np.linspace(0.0, self.duration_s, n)
         xyz = self._origin + np.stack([s(tg) for s in self._pos], axis=-1)
@@ -259,9 +295,21 @@ class SampledTrajectory(Trajectory):
         theta = np.arctan2(v_n[:, 2], vh)
         psi_m = np.unwrap(psi[moving])
         psi_f = np.interp(tg, tg[moving], psi_m)  # holds the first/last heading outside
+        if turn_radius > 0.0:  # a vehicle turns only as it moves: slow swings are noise
+            psi_f = limit_turn(tg, psi_f, vh, turn_radius)
         theta_f = np.interp(tg, tg[moving], theta[moving])
         sig = sigma if sigma > 0.0 else math.radians(0.2)
-        return [_fit(tg, psi_f, sig), _fit(tg, theta_f, sig), _fit(tg, np.zeros(n), 0.0)]
+        w = np.ones(n)
+        held = []
+        for a, b in self._stops:  # a stopped car does not turn: one heading, half-way between
+            m = (tg >= a) & (tg <= b)
+            ends = np.interp([a, b], tg, psi_f), np.interp([a, b], tg, theta_f)
+            psi_f[m], theta_f[m], w[m] = ends[0].mean(), ends[1].mean(), 1.0
+            held.append((a, b, float(ends[0].mean()), float(ends[1].mean())))
+        att = [_fit(tg, psi_f, sig, w), _fit(tg, theta_f, sig, w), _fit(tg, np.zeros(n), 0.0)]
+        for a, b, psi_c, theta_c in held:
+            att[0], att[1] = hold(att[0], a, b, psi_c, hold_ramp(a, b)), hold(att[1], a, b, theta_c, hold_ramp(a, b))
+        return att
 
     def kinematics(self, t: np.ndarray) -> Kinematics:
         t = np.asarray(t, dtype=float)
@@ -285,3 +333,26 @@ class SampledTrajectory(Trajectory):
     def time_offset_s(self) -> float:
         """Time of the track's first sample in its own time base, s."""
         return self._t0
+
+
+def _report(
+    source: str,
+    t: np.ndarray,
+    off: np.ndarray,
+    splines: list[BSpline],
+    smoothing: float,
+    rejected: np.ndarray,
+    stops: list[tuple[float, float]],
+) -> FitReport:
+    """The fit's residuals (m) at the samples ``off`` (N, 3) at times ``t`` (N,)."""
+    fitted = np.stack([s(t) for s in splines], axis=-1)
+    r = np.linalg.norm(fitted - off, axis=1)
+    good = ~rejected
+    i_max = int(np.argmax(np.where(good, r, -1.0)))
+    spreads = []
+    for a, b in stops:
+        m = (t >= a) & (t <= b)
+        ramp = hold_ramp(a, b)
+        spreads.append(Stationary(a, b, a + ramp, b - ramp, float(r[m].max())))
+    return FitReport(source, len(t), smoothing, float(np.sqrt(np.mean(r[good] ** 2))), float(r[i_max]), float(t[i_max]),
+                     tuple(Rejected(float(t[i]), float(r[i])) for i in np.flatnonzero(rejected)), tuple(spreads))
