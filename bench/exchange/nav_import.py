@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.dut.process import LogLine
 from bench.errors import ConfigError
 from bench.exchange.gpstime import GpsClock
 from bench.exchange.i2nav_text import NAV_COLUMNS, STD_COLUMNS, enu_to_ned, read_table
@@ -35,7 +36,7 @@ from bench.run.output import BAD_FRAMES_TOPIC, LOCATION_TOPIC, LOG_TOPIC, READY_
 from bench.topics import NAV_QUALITY_DTYPE, NAV_QUALITY_TOPIC, NAV_SOLUTION_DTYPE, NAV_SOLUTION_TOPIC
 from bench.wire.can import CanEncoder
 
-__all__ = ["NavFileError", "NavResult", "read_nav_result", "import_nav", "DUT_TOPICS"]
+__all__ = ["NavFileError", "NavResult", "read_nav_result", "import_nav", "write_output", "run_clock", "DUT_TOPICS"]
 
 #: The topics a DUT's output fills; an import replaces them.
 DUT_TOPICS = (NAV_SOLUTION_TOPIC.topic, NAV_QUALITY_TOPIC.topic, READY_TOPIC.topic, BAD_FRAMES_TOPIC, LOG_TOPIC,
@@ -142,41 +143,63 @@ def _frames(result: NavResult) -> list[CanBatch]:
     return out
 
 
-def import_nav(nav: str | Path, run: str | Path, out: str | Path, *, std: str | Path | None = None,
-               overwrite: bool = False) -> dict[str, int]:
-    """Write ``out``: the recording ``run`` with its DUT output replaced by the result ``nav``.
-
-    Returns the counts (``solutions``, ``qualities``, ``bad_frames``). Raises
-    :class:`NavFileError` for a malformed result, :class:`ConfigError` for a recording that
-    cannot be read or an ``out`` that cannot be written.
-    """
+def write_output(run: str | Path, out: str | Path, result: NavResult | None, *,
+                 end: tuple[str, str] | None = None, start_extra: dict[str, str] | None = None,
+                 log: list[LogLine] | None = None, overwrite: bool = False) -> dict[str, int]:
+    """Write ``out``: the recording ``run`` with its DUT output replaced by ``result``
+    (None: no output), ``run_start`` extended by ``start_extra``, the DUT's output lines
+    ``log`` on ``/dut/log`` at the run's end, and ``run_end`` = ``end`` (default: the
+    run's own). Returns the counts (``solutions``, ``qualities``, receiver rejections)."""
     if Path(out).resolve() == Path(run).resolve():
         raise ConfigError("the output would overwrite the run's own recording; give another -o", file=str(out))
     with RecordingReader(run) as src:
         meta = src.metadata()
-        epoch = src.epoch_ns()
-        if epoch == 0:
-            raise ConfigError("the recording has no run_start.epoch_utc_ns (UTC of bench time zero)", file=str(run))
-        try:
-            duration_ns = round(float(meta.get("run_start", {}).get("duration_s", "")) * 1e9)
-        except ValueError:
-            duration_ns = None
-        result = read_nav_result(nav, GpsClock.of_epoch(epoch), std=std, duration_ns=duration_ns)
-        end = meta.get("run_end", {"status": "error", "reason": "the source recording has no run_end"})
-        with RecordingWriter(out, epoch_ns=epoch, overwrite=overwrite) as rec:
+        own = meta.get("run_end", {"status": "error", "reason": "the source recording has no run_end"})
+        status, reason = end if end is not None else (own.get("status", "error"), own.get("reason", ""))
+        with RecordingWriter(out, epoch_ns=src.epoch_ns(), overwrite=overwrite) as rec:
             transcribe(src, rec, drop_topics=DUT_TOPICS, drop_metadata=("run_start", "run_end", "dut_output"))
-            start = dict(meta.get("run_start", {}))
-            start["dut_import"] = json.dumps({"nav": str(Path(nav).resolve()),
-                                              "std": str(Path(std).resolve()) if std else ""})
-            rec.metadata("run_start", start)
+            rec.metadata("run_start", {**meta.get("run_start", {}), **(start_extra or {})})
             spec = CAN_TOPICS[CAN_RX]
             rec.columnar_topic(spec.topic, spec.schema, spec.dtype, description=spec.description, units=spec.units)
             recorder = DutOutputRecorder(rec)
-            for batch in _frames(result):
-                recorder.feed(batch)
+            if result is not None:
+                for batch in _frames(result):
+                    recorder.feed(batch)
             recorder.process()
+            if log:
+                recorder.log(log, _duration_ns(meta) or 0)
             counts = {"solutions": recorder.solutions, "qualities": recorder.qualities, **recorder.tally.as_dict()}
             rec.metadata("dut_output", {"solutions": str(recorder.solutions), "qualities": str(recorder.qualities),
-                                        "imported_from": str(Path(nav).resolve())})
-            rec.close(end.get("status", "error"), end.get("reason", ""))
+                                        "bad_frames": json.dumps(recorder.tally.as_dict())})
+            rec.close(status, reason)
     return counts
+
+
+def _duration_ns(meta: dict[str, dict[str, str]]) -> int | None:
+    try:
+        return round(float(meta.get("run_start", {}).get("duration_s", "")) * 1e9)
+    except ValueError:
+        return None
+
+
+def run_clock(run: str | Path) -> tuple[GpsClock, int | None]:
+    """The GPS clock and the duration (ns, None if unknown) of a recording."""
+    with RecordingReader(run) as src:
+        epoch = src.epoch_ns()
+        if epoch == 0:
+            raise ConfigError("the recording has no run_start.epoch_utc_ns (UTC of bench time zero)", file=str(run))
+        return GpsClock.of_epoch(epoch), _duration_ns(src.metadata())
+
+
+def import_nav(nav: str | Path, run: str | Path, out: str | Path, *, std: str | Path | None = None,
+               overwrite: bool = False) -> dict[str, int]:
+    """Write ``out``: the recording ``run`` with its DUT output replaced by the result ``nav``
+    (:func:`write_output`); ``run_start.dut_import`` names the files.
+
+    Raises :class:`NavFileError` for a malformed result, :class:`ConfigError` for a recording
+    that cannot be read or an ``out`` that cannot be written.
+    """
+    clock, duration_ns = run_clock(run)
+    result = read_nav_result(nav, clock, std=std, duration_ns=duration_ns)
+    files = {"nav": str(Path(nav).resolve()), "std": str(Path(std).resolve()) if std else ""}
+    return write_output(run, out, result, start_extra={"dut_import": json.dumps(files)}, overwrite=overwrite)
