@@ -108,9 +108,9 @@ def integrate(t, dth, dvl, lat0, lon0, h0, v0, C0):
         vm = 0.5 * (v + v_new)
         h_new = h - vm[2] * dt
         hm = 0.5 * (h + h_new)
-        rm, rn = _radii(lat)
+        rm, _ = _radii(lat)
         lat_new = lat + vm[0] / (rm + hm) * dt
-        rm2, rn2 = _radii(0.5 * (lat + lat_new))
+        _, rn2 = _radii(0.5 * (lat + lat_new))
         lon = lon + vm[1] / ((rn2 + hm) * math.cos(0.5 * (lat + lat_new))) * dt
         lat, h, v = lat_new, h_new, v_new
         pth, pdv = th, dv
