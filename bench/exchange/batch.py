@@ -39,6 +39,7 @@ from bench.exchange.nav_import import NavFileError, read_nav_result, run_clock, 
 from bench.record.mcap_io import RecordingWriter
 from bench.run.case_runner import spec_from_case
 from bench.run.source import RunSource
+from bench.run.spec import RunSpec
 from bench.runinfo import parse_epoch
 from bench.scoring.data import COMMANDS
 
@@ -156,7 +157,7 @@ class BatchRunner:
         return out
 
     @staticmethod
-    def _synthesize(case: TestCase, run, spec: BatchSpec, path: Path, progress: Progress | None) -> None:
+    def _synthesize(case: TestCase, run: RunSpec, spec: BatchSpec, path: Path, progress: Progress | None) -> None:
         scenario = run.scenario
         source = RunSource(scenario, run.tables, run.seed, run.schedule, truth_rate_hz=run.truth_rate_hz,
                            write_ideal=spec.imu == "ideal", duration_ns=run.duration_ns)

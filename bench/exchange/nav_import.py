@@ -52,10 +52,12 @@ class NavFileError(ConfigError):
 
 @dataclass
 class NavResult:
-    """An imported result: NAV_SOLUTION and NAV_QUALITY records (``rx_ns`` = ``t_ns``)."""
+    """An imported result: NAV_SOLUTION and NAV_QUALITY records (``rx_ns`` = ``t_ns``), in
+    the files' order; ``quality_of[k]`` is the index of the solution quality ``k`` belongs to."""
 
     solutions: np.ndarray
     qualities: np.ndarray
+    quality_of: np.ndarray
 
 
 def _table(path: Path, names: tuple[str, ...], what: str) -> np.ndarray:
@@ -102,6 +104,7 @@ def read_nav_result(nav: str | Path, clock: GpsClock, *, std: str | Path | None 
     sol["mode"], sol["valid"], sol["frame"] = 5, 1, 0
     sol["epoch"] = np.arange(len(a)) % 256
     qual = np.zeros(0, NAV_QUALITY_DTYPE)
+    of = np.zeros(0, np.int64)
     if std is not None:
         s = _table(Path(std), STD_COLUMNS, "STD file")
         neg = np.flatnonzero(np.any(s[:, 1:] < 0, axis=1))
@@ -119,27 +122,28 @@ def read_nav_result(nav: str | Path, clock: GpsClock, *, std: str | Path | None 
         qual = np.zeros(len(pick), NAV_QUALITY_DTYPE)
         if pick:
             js, is_ = np.array(pick).T
+            of = is_.astype(np.int64)
             qual["t_ns"] = qual["rx_ns"] = sol["t_ns"][is_]
             qual["epoch"] = sol["epoch"][is_]
             qual["sigma_pos"] = np.abs(enu_to_ned(s[js, 1:4]))
             qual["sigma_vel"] = np.abs(enu_to_ned(s[js, 4:7]))
             qual["sigma_att"] = np.radians(s[js][:, [9, 8, 7]])
-    return NavResult(sol, qual)
+    return NavResult(sol, qual, of)
 
 
 def _frames(result: NavResult) -> list[CanBatch]:
-    """The CAN FD frames of the result, epoch by epoch in blocks (solution, then its quality)."""
+    """The CAN FD frames of the result in blocks of epochs: each block's solutions, then the
+    qualities of those solutions (a quality meets its solution within the receiver's
+    pairing window whatever the order of the files' lines)."""
     enc = CanEncoder(wire_range=True)
     out: list[CanBatch] = []
     sol, qual = result.solutions, result.qualities
-    q_at = np.searchsorted(qual["t_ns"], sol["t_ns"]) if len(qual) else None
-    for i in range(0, len(sol), _BLOCK):
-        block = sol[i : i + _BLOCK]
-        out.append(enc.encode_records("NAV_SOLUTION", block))
-        if q_at is not None:
-            lo, hi = int(q_at[i]), (int(q_at[i + _BLOCK]) if i + _BLOCK < len(sol) else len(qual))
-            if hi > lo:
-                out.append(enc.encode_records("NAV_QUALITY", qual[lo:hi]))
+    block_of = result.quality_of // _BLOCK
+    for b, i in enumerate(range(0, len(sol), _BLOCK)):
+        out.append(enc.encode_records("NAV_SOLUTION", sol[i : i + _BLOCK]))
+        mine = np.flatnonzero(block_of == b)
+        if len(mine):
+            out.append(enc.encode_records("NAV_QUALITY", qual[mine]))
     return out
 
 

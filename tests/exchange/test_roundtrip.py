@@ -77,3 +77,17 @@ def test_an_imported_output_that_differs_scores_differently(reference_run, tmp_p
     assert moved.values["H-RMS"].value > live.values["H-RMS"].value + 5.0
     # without the STD file there is no NAV_QUALITY: the integrity check names it
     assert moved.values["INTEGRITY-quality"].value > 0
+
+
+def test_std_lines_in_any_order_pair_with_their_epochs(reference_run, tmp_path):
+    folder = tmp_path / "x"
+    assert main(["export", str(reference_run), "-o", str(folder), "--dut"]) == 0
+    lines = (folder / "dut_std.txt").read_text().splitlines()
+    (folder / "reversed_std.txt").write_text("\n".join(reversed(lines)) + "\n")
+    out = tmp_path / "r.mcap"
+    assert main(["import-nav", str(folder / "dut.nav"), "--run", str(reference_run), "--std",
+                 str(folder / "reversed_std.txt"), "-o", str(out)]) == 0
+    _, live = score_recording(reference_run)
+    _, back = score_recording(out)
+    assert back.values["INTEGRITY-quality"].value == 0
+    assert back.values["NEES-POS"].value == pytest.approx(live.values["NEES-POS"].value, rel=1e-12)
