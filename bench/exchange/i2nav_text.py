@@ -85,10 +85,12 @@ def std_rows(sigma_pos_enu: np.ndarray, sigma_vel_enu: np.ndarray, sigma_att_hpr
     return cols, [".4f"] * 3 + [".5f"] * 3 + [".8f"] * 3
 
 
-def read_table(path: str | Path, names: Sequence[str], *, what: str, max_bytes: int = 1 << 30) -> np.ndarray:
+def read_table(path: str | Path, names: Sequence[str], *, what: str, max_bytes: int = 1 << 30
+               ) -> tuple[np.ndarray, np.ndarray]:
     """Read a whitespace-separated numeric text file whose first ``len(names)`` columns
     are ``names`` (more columns are ignored; ``#`` and ``%`` start comments, blank lines
-    are skipped). Returns an (N, len(names)) float array.
+    are skipped). Returns an (N, len(names)) float array and the (N,) line numbers (from 1)
+    the rows come from, for messages about them.
 
     Raises :class:`ConfigError` naming the file, the line and the field for a line with
     too few columns, a value that is not a number or not finite, or a file with no line.
@@ -100,6 +102,7 @@ def read_table(path: str | Path, names: Sequence[str], *, what: str, max_bytes: 
     if p.stat().st_size > max_bytes:
         raise ConfigError(f"{what} of {p.stat().st_size} B is larger than {max_bytes} B", file=str(p))
     rows: list[list[float]] = []
+    numbers: list[int] = []
     with open(p, encoding="utf-8", errors="replace") as fh:
         for lineno, line in enumerate(fh, start=1):
             text = line.split("#", 1)[0].split("%", 1)[0].replace(",", " ").strip()
@@ -121,6 +124,7 @@ def read_table(path: str | Path, names: Sequence[str], *, what: str, max_bytes: 
                                       f"found {parts[k][:40]!r}", file=str(p))
                 row.append(v)
             rows.append(row)
+            numbers.append(lineno)
     if not rows:
         raise ConfigError(f"no data line in the {what}", file=str(p))
-    return np.asarray(rows, dtype=float)
+    return np.asarray(rows, dtype=float), np.asarray(numbers, dtype=np.int64)

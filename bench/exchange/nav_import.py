@@ -60,7 +60,7 @@ class NavResult:
     quality_of: np.ndarray
 
 
-def _table(path: Path, names: tuple[str, ...], what: str) -> np.ndarray:
+def _table(path: Path, names: tuple[str, ...], what: str) -> tuple[np.ndarray, np.ndarray]:
     try:
         return read_table(path, names, what=what)
     except NavFileError:
@@ -69,7 +69,8 @@ def _table(path: Path, names: tuple[str, ...], what: str) -> np.ndarray:
         raise NavFileError(exc.reason, file=exc.file, key=exc.key) from None
 
 
-def _times(path: Path, clock: GpsClock, week: np.ndarray | int, sow: np.ndarray, duration_ns: int | None) -> np.ndarray:
+def _times(path: Path, clock: GpsClock, week: np.ndarray | int, sow: np.ndarray, lines: np.ndarray,
+           duration_ns: int | None) -> np.ndarray:
     """Bench times (ns, on the wire's microsecond) of the lines; a time before the run's
     start or more than 1 s after its end is a :class:`NavFileError`."""
     t = (clock.bench_ns(week, sow) + 500) // 1000 * 1000
@@ -77,7 +78,7 @@ def _times(path: Path, clock: GpsClock, week: np.ndarray | int, sow: np.ndarray,
     bad = np.flatnonzero((t < 0) | (t > last))
     if len(bad):
         i = int(bad[0])
-        raise NavFileError(f"data line {i + 1}: time {float(sow[i]):.6f} s of week is outside the run "
+        raise NavFileError(f"line {int(lines[i])}, field sow: time {float(sow[i]):.6f} s of week is outside the run "
                            f"(bench time {t[i] * 1e-9:.6f} s)", file=str(path))
     return t
 
@@ -86,15 +87,15 @@ def read_nav_result(nav: str | Path, clock: GpsClock, *, std: str | Path | None 
                     duration_ns: int | None = None) -> NavResult:
     """Read and check a ``.nav`` result (and its STD file) of a run with ``clock``."""
     nav = Path(nav)
-    a = _table(nav, NAV_COLUMNS, ".nav result")
+    a, lines = _table(nav, NAV_COLUMNS, ".nav result")
     for k, name in enumerate(NAV_COLUMNS):
         lim = _WIRE_LIMITS.get(name)
         if lim is not None and np.any(np.abs(a[:, k]) > lim):
             i = int(np.flatnonzero(np.abs(a[:, k]) > lim)[0])
-            raise NavFileError(f"data line {i + 1}, column {k + 1} ({name}): {a[i, k]:g} is beyond what the ICD's "
+            raise NavFileError(f"line {int(lines[i])}, column {k + 1} ({name}): {a[i, k]:g} is beyond what the ICD's "
                                f"NAV_SOLUTION carries (|value| <= {lim:g})", file=str(nav))
     sol = np.zeros(len(a), NAV_SOLUTION_DTYPE)
-    sol["t_ns"] = _times(nav, clock, a[:, 0].astype(np.int64), a[:, 1], duration_ns)
+    sol["t_ns"] = _times(nav, clock, a[:, 0].astype(np.int64), a[:, 1], lines, duration_ns)
     sol["rx_ns"] = sol["t_ns"]
     sol["lat"], sol["lon"], sol["h"] = np.radians(a[:, 2]), np.radians(a[:, 3]), a[:, 4]
     sol["vel_n"] = enu_to_ned(a[:, 5:8])
@@ -106,11 +107,13 @@ def read_nav_result(nav: str | Path, clock: GpsClock, *, std: str | Path | None 
     qual = np.zeros(0, NAV_QUALITY_DTYPE)
     of = np.zeros(0, np.int64)
     if std is not None:
-        s = _table(Path(std), STD_COLUMNS, "STD file")
-        neg = np.flatnonzero(np.any(s[:, 1:] < 0, axis=1))
+        s, s_lines = _table(Path(std), STD_COLUMNS, "STD file")
+        neg = np.argwhere(s[:, 1:] < 0)
         if len(neg):
-            raise NavFileError(f"data line {int(neg[0]) + 1}: a standard deviation is negative", file=str(std))
-        t = _times(Path(std), clock, clock.week, s[:, 0], duration_ns)
+            i, k = (int(x) for x in neg[0])
+            raise NavFileError(f"line {int(s_lines[i])}, column {k + 2} ({STD_COLUMNS[k + 1]}): a standard deviation "
+                               f"is negative ({s[i, k + 1]:g})", file=str(std))
+        t = _times(Path(std), clock, clock.week, s[:, 0], s_lines, duration_ns)
         idx = np.searchsorted(sol["t_ns"], t) if np.all(np.diff(sol["t_ns"]) > 0) else None
         match = {int(v): i for i, v in enumerate(sol["t_ns"])} if idx is None else None
         pick = []

@@ -63,10 +63,11 @@ def test_a_good_line(tmp_path):
         ("# c\n" + GOOD + "2369 18.02 34.2 108.9 abc 1 2 3 0 0 0\n",
          r"r.nav: line 3, column 5 \(h\): expected a number, found 'abc'"),
         ("2369 18.01 nan 108.9 380 1 2 3 0 0 0\n", r"r.nav: line 1, column 3 \(lat\): expected a finite number"),
-        ("2369 17.00 34.2 108.9 380 1 2 3 0 0 0\n", r"r.nav: data line 1: time 17.000000 s of week is outside the run"),
-        ("2369 18.01 34.2 108.9 380 1 2 3 0 0 0\n2369 99.0 34.2 108.9 380 1 2 3 0 0 0\n",
-         r"data line 2: time 99.000000 s of week is outside the run"),
-        ("2369 18.01 340.2 108.9 380 1 2 3 0 0 0\n", r"data line 1, column 3 \(lat\): 340.2 is beyond what the ICD"),
+        ("2369 17.00 34.2 108.9 380 1 2 3 0 0 0\n",
+         r"r.nav: line 1, field sow: time 17.000000 s of week is outside the run"),
+        ("2369 18.01 34.2 108.9 380 1 2 3 0 0 0\n# comment\n2369 99.0 34.2 108.9 380 1 2 3 0 0 0\n",
+         r"line 3, field sow: time 99.000000 s of week is outside the run"),
+        ("2369 18.01 340.2 108.9 380 1 2 3 0 0 0\n", r"r.nav: line 1, column 3 \(lat\): 340.2 is beyond what the ICD"),
         ("# only a comment\n", r"r.nav: no data line in the .nav result"),
     ],
 )
@@ -87,7 +88,7 @@ def test_std_file(tmp_path):
     assert np.allclose(q["sigma_pos"][0], [2, 1, 3]) and np.allclose(q["sigma_vel"][0], [0.2, 0.1, 0.3])
     assert np.allclose(np.degrees(q["sigma_att"][0]), [0.7, 0.6, 0.5])  # heading, pitch, roll
     std.write_text("18.010000000 1 2 -3 0.1 0.2 0.3 0.5 0.6 0.7\n")
-    with pytest.raises(NavFileError, match=r"s.txt: data line 1: a standard deviation is negative"):
+    with pytest.raises(NavFileError, match=r"s.txt: line 1, column 4 \(sigma_pos_d\): a standard deviation is neg"):
         read_nav_result(nav, CLOCK, std=std)
     with pytest.raises(NavFileError, match=r"expected a regular file \(STD file\), found nothing"):
         read_nav_result(nav, CLOCK, std=tmp_path / "missing.txt")
