@@ -41,7 +41,7 @@ __all__ = [
 ]
 
 CLOCK_MODES = ("lockstep", "realtime")
-DUT_KINDS = ("synthetic", "in_process", "external")
+DUT_KINDS = ("synthetic", "in_process", "external", "batch")
 
 
 @dataclass(frozen=True)
@@ -89,6 +89,8 @@ class DutSpec:
     links: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     variants: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     synthetic: Any = None
+    #: ``kind = "batch"``: the command, timeout, working folder (bench.acceptance.batch_spec.BatchSpec)
+    batch: Any = None
     description: str = ""
     #: the DUT's version as the case declares it (``[dut] version``); in-process reference
     #: estimators are the bench's own code: their version is the bench's when none is given

@@ -2,8 +2,9 @@
 
 :func:`score_recording` judges one recording against its test case (the one attached to
 the recording unless another is given): integrity first (a run that did not complete --
-bench-side failures and ``dut_error`` endings alike, :data:`bench.scoring.integrity.DUT_STATUSES`
-being empty -- makes every criterion ERROR with the reason; a failed output-integrity
+bench-side failures and ``dut_error`` endings alike -- makes every criterion ERROR with the
+reason; a batch DUT's ``dut_failed`` ending, :data:`bench.scoring.integrity.DUT_STATUSES`,
+makes what it leaves unmeasurable FAIL with the reason; a failed output-integrity
 criterion makes what the DUT's output leaves unmeasurable FAIL), then every criterion of the
 run's variant from the recording alone -- the case's own criteria and the default output
 integrity criteria (:mod:`bench.acceptance.integrity_criteria`) it was loaded with.

@@ -76,6 +76,7 @@ _BUILTIN = {
     "synthetic": "bench.acceptance.synthetic:SyntheticRunner",
     "in_process": "bench.run.case_runner:EngineRunner",
     "external": "bench.run.case_runner:EngineRunner",
+    "batch": "bench.exchange.batch:BatchRunner",
 }
 
 

@@ -307,11 +307,12 @@ def _udp_keys(t: Table, vals: Mapping[str, Any]) -> None:
 
 
 def _dut(t: Table, base: Path | None, check_files: bool) -> DutSpec:
+    from bench.acceptance.batch_spec import parse_batch
     from bench.acceptance.synthetic_spec import parse_synthetic
 
     kind = t.str("kind", required=True, choices=DUT_KINDS)
     name = t.str("name")
-    command = t.str("command")
+    command, batch = parse_batch(t, str(kind))
     raw_config = t.raw("config", {})
     config: dict[str, Any] = {}
     config_file = None
@@ -389,6 +390,7 @@ def _dut(t: Table, base: Path | None, check_files: bool) -> DutSpec:
         links=links,
         variants=variants,
         synthetic=synthetic,
+        batch=batch,
         description=str(description),
         version=str(version),
     )

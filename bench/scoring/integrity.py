@@ -10,8 +10,8 @@ runs, how late the bench was at every step (``/bench/timing``). From these:
   at all, a replay of a source recording that was unfinished, damaged, ended early or was
   itself such a replay (:mod:`bench.record.provenance`) unless the replay was run with
   ``--accept-damaged-source`` (then a **note** says so);
-* **DUT issues** make it FAIL: ``dut_error`` (the DUT crashed, hung or misbehaved on the
-  link, as the run engine saw it).
+* **DUT issues** make it FAIL: ``dut_failed`` (a batch DUT's command failed, timed out or
+  wrote no or a malformed result: :data:`DUT_STATUSES`).
 """
 
 from __future__ import annotations
@@ -26,10 +26,12 @@ from bench.scoring.data import NAV_SOLUTION, TIMING, TRUTH, RunData
 __all__ = ["Integrity", "check_integrity", "DUT_STATUSES", "OK_STATUSES"]
 
 OK_STATUSES = ("complete",)
-#: Run endings that are the DUT's failure to be judged rather than a measured miss. None:
-#: a DUT that crashes, hangs, never starts or floods the bus ends the run as ERROR (ICD 6,
-#: issue 5): the bench could not judge it; the reason says what the DUT did.
-DUT_STATUSES: tuple[str, ...] = ()
+#: Run endings that are the DUT's failure to be judged rather than a measured miss: only
+#: ``dut_failed``, a batch DUT (bench.exchange.batch) whose command failed, timed out or
+#: wrote no or a malformed result -- the bench had done its part. A live DUT that crashes,
+#: hangs, never starts or floods the bus ends the run ``dut_error``, ERROR (ICD 6, issue
+#: 5): the bench could not judge it; the reason says what the DUT did.
+DUT_STATUSES: tuple[str, ...] = ("dut_failed",)
 
 
 @dataclass

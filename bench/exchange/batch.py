@@ -1,0 +1,181 @@
+"""The ``batch`` DUT kind: an estimator that works on files, run on a case's synthesized inputs.
+
+For one run of a case (``[dut] kind = "batch"``, keys in :mod:`bench.acceptance.batch_spec`):
+
+1. the run's inputs are synthesized as the run engine's source makes them -- the case's
+   scenario, sensor tables, fault schedule, seed and duration -- into ``inputs.mcap`` in a
+   work folder ``<recording>.batch/`` beside the recording (no links, no clock);
+2. they are exported (:func:`~bench.exchange.i2nav_export.export_i2nav`) into
+   ``<work>/input/``; ``[dut] config`` goes to ``<work>/dut_config.json``;
+3. the command runs (placeholders filled, in ``cwd``, stdin closed, its stdout and stderr
+   kept in ``<work>/stdout.txt``/``stderr.txt`` and recorded on ``/dut/log``) with its
+   timeout, in a process group of its own (killed whole on timeout);
+4. its result ``<work>/output/result.nav`` (and ``result_std.txt`` if written) is imported
+   (:mod:`~bench.exchange.nav_import`) into the run's recording, which is judged as any.
+
+A command that cannot be started, exits non-zero, runs past its timeout, or writes no or a
+malformed result ends the run ``dut_failed`` with the reason (FAIL: the DUT misbehaved,
+the bench did its part). A failure of the bench's own steps (synthesis, export, writing
+the recording) raises or ends the run ``error`` (ERROR).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+from bench.acceptance.batch_spec import BatchSpec
+from bench.acceptance.case import TestCase
+from bench.acceptance.runner import Progress
+from bench.dut.process import LogLine
+from bench.errors import ConfigError
+from bench.exchange.i2nav_export import export_i2nav
+from bench.exchange.nav_import import NavFileError, read_nav_result, run_clock, write_output
+from bench.record.mcap_io import RecordingWriter
+from bench.run.case_runner import spec_from_case
+from bench.run.source import RunSource
+from bench.run.spec import RunSpec
+from bench.runinfo import parse_epoch
+from bench.scoring.data import COMMANDS
+
+__all__ = ["BatchRunner", "run_command", "CommandOutcome"]
+
+_WINDOW_NS = 10_000_000_000
+_MAX_LOG_LINES = 10_000
+
+
+class CommandOutcome:
+    """How the command ended: ``failure`` is None when it exited 0 in time."""
+
+    def __init__(self, failure: str | None, lines: list[LogLine]):
+        self.failure = failure
+        self.lines = lines
+
+
+def _tail(lines: list[LogLine], n: int = 5) -> str:
+    last = [ln.text for ln in lines if ln.text.strip()][-n:]
+    return f" (last output: {' | '.join(last)})" if last else ""
+
+
+def _read_lines(path: Path, stream: str) -> list[LogLine]:
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return []
+    return [LogLine(0, stream, ln) for ln in text.splitlines()[-_MAX_LOG_LINES:]]
+
+
+def run_command(argv: list[str], cwd: Path, timeout_s: float, work: Path) -> CommandOutcome:
+    """Run ``argv`` to its end or its timeout (its process group killed then); stdout and
+    stderr go to ``work/stdout.txt`` and ``work/stderr.txt``."""
+    out_p, err_p = work / "stdout.txt", work / "stderr.txt"
+    with open(out_p, "wb") as out, open(err_p, "wb") as err:
+        try:
+            proc = subprocess.Popen(argv, cwd=cwd, stdin=subprocess.DEVNULL, stdout=out, stderr=err,
+                                    start_new_session=True)
+        except OSError as exc:
+            return CommandOutcome(f"cannot start the batch DUT {argv[0]!r}: {exc.strerror or exc}", [])
+        code: int | None = None
+        try:
+            code = proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            pass
+        finally:
+            if code is None:
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(proc.pid, signal.SIGKILL)  # the group we started (start_new_session)
+                proc.wait()
+    lines = _read_lines(out_p, "stdout") + _read_lines(err_p, "stderr")
+    if code is None:
+        return CommandOutcome(f"the batch DUT did not finish within its timeout of {timeout_s:g} s (killed)"
+                              + _tail(lines), lines)
+    if code != 0:
+        how = f"on signal {signal.Signals(-code).name}" if code < 0 and -code in signal.valid_signals() \
+            else f"with code {code}"
+        return CommandOutcome(f"the batch DUT exited {how}" + _tail(lines), lines)
+    return CommandOutcome(None, lines)
+
+
+def _argv(spec: BatchSpec, values: dict[str, str]) -> list[str]:
+    return [w.format_map(values) for w in spec.argv]
+
+
+class BatchRunner:
+    """:class:`~bench.acceptance.runner.CaseRunner` of ``[dut] kind = "batch"``."""
+
+    name = "batch"
+
+    def run(self, case: TestCase, seed: int, out_dir: Path, *, progress: Progress | None = None) -> Path:
+        spec = case.dut.batch
+        if not isinstance(spec, BatchSpec):
+            raise ConfigError("the batch runner needs [dut] kind = 'batch'", file=case.file, key="dut.kind")
+        run = spec_from_case(case, seed, Path(out_dir))
+        out = run.out
+        work = out.with_name(out.stem + ".batch")
+        work.mkdir(parents=True, exist_ok=True)
+        inputs = work / "inputs.mcap"
+        self._synthesize(case, run, spec, inputs, progress)
+        export_i2nav(inputs, work / "input", imu=spec.imu)
+        (work / "output").mkdir(exist_ok=True)
+        result_p, std_p = work / "output" / "result.nav", work / "output" / "result_std.txt"
+        for p in (result_p, std_p):
+            p.unlink(missing_ok=True)
+        config_p = work / "dut_config.json"
+        config_p.write_text(json.dumps(dict(case.dut.config), indent=2) + "\n", encoding="utf-8")
+        base = case.path.resolve().parent if case.path is not None else Path.cwd()
+        values = {"input": str(work / "input"), "output": str(result_p), "std": str(std_p), "config": str(config_p),
+                  "python": sys.executable, "case_dir": str(base)}
+        argv = _argv(spec, values)
+        cwd = base if spec.cwd is None else (base / spec.cwd).resolve()
+        if not cwd.is_dir():
+            raise ConfigError(f"the batch DUT's working folder {cwd} is not a folder", file=case.file, key="dut.cwd")
+        outcome = run_command(argv, cwd, spec.timeout_s, work)
+        failure, result = outcome.failure, None
+        if failure is None:
+            if not result_p.is_file():
+                failure = (f"the batch DUT exited with code 0 but wrote no result ({result_p.name})"
+                           + _tail(outcome.lines))
+            else:
+                clock, duration_ns = run_clock(inputs)
+                try:
+                    result = read_nav_result(result_p, clock, std=std_p if std_p.is_file() else None,
+                                             duration_ns=duration_ns)
+                except NavFileError as exc:
+                    failure = f"the batch DUT's result is malformed: {exc}"
+        end = ("dut_failed", failure) if failure is not None else ("complete", "")
+        write_output(inputs, out, result, end=end, log=outcome.lines, overwrite=True,
+                     start_extra={"batch_command": json.dumps(argv), "batch_work": str(work)})
+        inputs.unlink(missing_ok=True)
+        if progress is not None:
+            total = (run.duration_ns or 0) * 1e-9
+            progress(total, total)
+        return out
+
+    @staticmethod
+    def _synthesize(case: TestCase, run: RunSpec, spec: BatchSpec, path: Path, progress: Progress | None) -> None:
+        scenario = run.scenario
+        source = RunSource(scenario, run.tables, run.seed, run.schedule, truth_rate_hz=run.truth_rate_hz,
+                           write_ideal=spec.imu == "ideal", duration_ns=run.duration_ns)
+        epoch = parse_epoch(scenario.meta.get("start_utc"), file=str(scenario.path))
+        total = source.duration_ns
+        with RecordingWriter(path, epoch_ns=epoch, overwrite=True) as rec:
+            rec.metadata("run_start", {**run.run_start, **source.metadata(), "runner": "batch",
+                                       "epoch_utc_ns": str(epoch)})
+            for name, data, media in run.attachments:
+                rec.attach(name, data, media)
+            source.declare(rec, attach_scenario=False)
+            rec.json_topic(COMMANDS, "bench.Command", {"type": "object"})
+            for c in case.commands:
+                rec.write_json(COMMANDS, c.t_ns, {"t_ns": c.t_ns, "command": c.command})
+            t0 = 0
+            while t0 < total:
+                t1 = min(t0 + _WINDOW_NS, total)
+                source.produce(rec, t0, t1)
+                t0 = t1
+                if progress is not None:
+                    progress(t0 * 1e-9 * 0.8, total * 1e-9)

@@ -1,0 +1,212 @@
+"""``bench import-nav``: a ``.nav`` result made into a run's DUT output.
+
+The result (KF-GINS ``.nav`` columns, :mod:`bench.exchange.i2nav_text`) and optionally its
+state-STD file are read and checked (a malformed line is a :class:`NavFileError` naming
+file, line and field); every epoch becomes a NAV_SOLUTION record (time of validity from
+GPS week and seconds of week, rounded to the wire's microsecond; ENU velocity; heading
+in [0, 2 pi); geographic frame, mode 5 (multi-sensor), valid -- the format has no
+validity flag), every STD line at the time of an epoch a NAV_QUALITY record. Both are
+encoded into the ICD's CAN FD frames by the DUT side's encoder and received by the bench's
+receiver exactly as a live DUT's frames are (:class:`bench.run.output.DutOutputRecorder`:
+``/wire/can/rx``, ``/dut/nav_solution``, ``/dut/nav_quality``, ``/dut/bad_frames``,
+``/dut/location``), arriving at their time of validity (as in lockstep).
+
+The new recording holds everything else of the run as it was (:func:`bench.record.transcribe.transcribe`),
+``run_start`` with ``dut_import`` naming the result, and the run's own ``run_end``, so
+``bench score`` judges it like any run.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from bench.dut.process import LogLine
+from bench.errors import ConfigError
+from bench.exchange.gpstime import GpsClock
+from bench.exchange.i2nav_text import NAV_COLUMNS, STD_COLUMNS, enu_to_ned, read_table
+from bench.frames import CanBatch
+from bench.record.mcap_io import RecordingReader, RecordingWriter
+from bench.record.transcribe import transcribe
+from bench.record.wire_topics import CAN_RX, CAN_TOPICS
+from bench.run.output import BAD_FRAMES_TOPIC, LOCATION_TOPIC, LOG_TOPIC, READY_TOPIC, DutOutputRecorder
+from bench.topics import NAV_QUALITY_DTYPE, NAV_QUALITY_TOPIC, NAV_SOLUTION_DTYPE, NAV_SOLUTION_TOPIC
+from bench.wire.can import CanEncoder
+
+__all__ = ["NavFileError", "NavResult", "read_nav_result", "import_nav", "write_output", "run_clock", "DUT_TOPICS"]
+
+#: The topics a DUT's output fills; an import replaces them.
+DUT_TOPICS = (NAV_SOLUTION_TOPIC.topic, NAV_QUALITY_TOPIC.topic, READY_TOPIC.topic, BAD_FRAMES_TOPIC, LOG_TOPIC,
+              LOCATION_TOPIC, CAN_RX)
+#: What the ICD's NAV_SOLUTION can carry (int32 fields): larger values cannot be a DUT's output
+_WIRE_LIMITS = {"lat": 214.0, "lon": 214.0, "h": 2.1e6, "vel_n": 2.1e5, "vel_e": 2.1e5, "vel_d": 2.1e5}
+_BLOCK = 50  # epochs per batch: a quality meets its solution within the receiver's pairing window
+
+
+class NavFileError(ConfigError):
+    """A ``.nav`` or STD file that cannot be a DUT's result (file, line and field named)."""
+
+
+@dataclass
+class NavResult:
+    """An imported result: NAV_SOLUTION and NAV_QUALITY records (``rx_ns`` = ``t_ns``), in
+    the files' order; ``quality_of[k]`` is the index of the solution quality ``k`` belongs to."""
+
+    solutions: np.ndarray
+    qualities: np.ndarray
+    quality_of: np.ndarray
+
+
+def _table(path: Path, names: tuple[str, ...], what: str) -> tuple[np.ndarray, np.ndarray]:
+    try:
+        return read_table(path, names, what=what)
+    except NavFileError:
+        raise
+    except ConfigError as exc:
+        raise NavFileError(exc.reason, file=exc.file, key=exc.key) from None
+
+
+def _times(path: Path, clock: GpsClock, week: np.ndarray | int, sow: np.ndarray, lines: np.ndarray,
+           duration_ns: int | None) -> np.ndarray:
+    """Bench times (ns, on the wire's microsecond) of the lines; a time before the run's
+    start or more than 1 s after its end is a :class:`NavFileError`."""
+    t = (clock.bench_ns(week, sow) + 500) // 1000 * 1000
+    last = duration_ns + 10**9 if duration_ns is not None else np.iinfo(np.int64).max
+    bad = np.flatnonzero((t < 0) | (t > last))
+    if len(bad):
+        i = int(bad[0])
+        raise NavFileError(f"line {int(lines[i])}, field sow: time {float(sow[i]):.6f} s of week is outside the run "
+                           f"(bench time {t[i] * 1e-9:.6f} s)", file=str(path))
+    return t
+
+
+def read_nav_result(nav: str | Path, clock: GpsClock, *, std: str | Path | None = None,
+                    duration_ns: int | None = None) -> NavResult:
+    """Read and check a ``.nav`` result (and its STD file) of a run with ``clock``."""
+    nav = Path(nav)
+    a, lines = _table(nav, NAV_COLUMNS, ".nav result")
+    for k, name in enumerate(NAV_COLUMNS):
+        lim = _WIRE_LIMITS.get(name)
+        if lim is not None and np.any(np.abs(a[:, k]) > lim):
+            i = int(np.flatnonzero(np.abs(a[:, k]) > lim)[0])
+            raise NavFileError(f"line {int(lines[i])}, column {k + 1} ({name}): {a[i, k]:g} is beyond what the ICD's "
+                               f"NAV_SOLUTION carries (|value| <= {lim:g})", file=str(nav))
+    sol = np.zeros(len(a), NAV_SOLUTION_DTYPE)
+    sol["t_ns"] = _times(nav, clock, a[:, 0].astype(np.int64), a[:, 1], lines, duration_ns)
+    sol["rx_ns"] = sol["t_ns"]
+    sol["lat"], sol["lon"], sol["h"] = np.radians(a[:, 2]), np.radians(a[:, 3]), a[:, 4]
+    sol["vel_n"] = enu_to_ned(a[:, 5:8])
+    sol["roll"], sol["pitch"] = np.radians(a[:, 8]), np.radians(a[:, 9])
+    sol["heading"] = np.mod(np.radians(a[:, 10]), 2 * np.pi)
+    sol["heading"][sol["heading"] >= 2 * np.pi] = 0.0
+    sol["mode"], sol["valid"], sol["frame"] = 5, 1, 0
+    sol["epoch"] = np.arange(len(a)) % 256
+    qual = np.zeros(0, NAV_QUALITY_DTYPE)
+    of = np.zeros(0, np.int64)
+    if std is not None:
+        s, s_lines = _table(Path(std), STD_COLUMNS, "STD file")
+        neg = np.argwhere(s[:, 1:] < 0)
+        if len(neg):
+            i, k = (int(x) for x in neg[0])
+            raise NavFileError(f"line {int(s_lines[i])}, column {k + 2} ({STD_COLUMNS[k + 1]}): a standard deviation "
+                               f"is negative ({s[i, k + 1]:g})", file=str(std))
+        t = _times(Path(std), clock, clock.week, s[:, 0], s_lines, duration_ns)
+        idx = np.searchsorted(sol["t_ns"], t) if np.all(np.diff(sol["t_ns"]) > 0) else None
+        match = {int(v): i for i, v in enumerate(sol["t_ns"])} if idx is None else None
+        pick = []
+        for j, tj in enumerate(t.tolist()):
+            i = match.get(tj) if match is not None else (int(idx[j]) if idx[j] < len(sol) and
+                                                          sol["t_ns"][idx[j]] == tj else None)
+            if i is not None:
+                pick.append((j, i))
+        qual = np.zeros(len(pick), NAV_QUALITY_DTYPE)
+        if pick:
+            js, is_ = np.array(pick).T
+            of = is_.astype(np.int64)
+            qual["t_ns"] = qual["rx_ns"] = sol["t_ns"][is_]
+            qual["epoch"] = sol["epoch"][is_]
+            qual["sigma_pos"] = np.abs(enu_to_ned(s[js, 1:4]))
+            qual["sigma_vel"] = np.abs(enu_to_ned(s[js, 4:7]))
+            qual["sigma_att"] = np.radians(s[js][:, [9, 8, 7]])
+    return NavResult(sol, qual, of)
+
+
+def _frames(result: NavResult) -> list[CanBatch]:
+    """The CAN FD frames of the result in blocks of epochs: each block's solutions, then the
+    qualities of those solutions (a quality meets its solution within the receiver's
+    pairing window whatever the order of the files' lines)."""
+    enc = CanEncoder(wire_range=True)
+    out: list[CanBatch] = []
+    sol, qual = result.solutions, result.qualities
+    block_of = result.quality_of // _BLOCK
+    for b, i in enumerate(range(0, len(sol), _BLOCK)):
+        out.append(enc.encode_records("NAV_SOLUTION", sol[i : i + _BLOCK]))
+        mine = np.flatnonzero(block_of == b)
+        if len(mine):
+            out.append(enc.encode_records("NAV_QUALITY", qual[mine]))
+    return out
+
+
+def write_output(run: str | Path, out: str | Path, result: NavResult | None, *,
+                 end: tuple[str, str] | None = None, start_extra: dict[str, str] | None = None,
+                 log: list[LogLine] | None = None, overwrite: bool = False) -> dict[str, int]:
+    """Write ``out``: the recording ``run`` with its DUT output replaced by ``result``
+    (None: no output), ``run_start`` extended by ``start_extra``, the DUT's output lines
+    ``log`` on ``/dut/log`` at the run's end, and ``run_end`` = ``end`` (default: the
+    run's own). Returns the counts (``solutions``, ``qualities``, receiver rejections)."""
+    if Path(out).resolve() == Path(run).resolve():
+        raise ConfigError("the output would overwrite the run's own recording; give another -o", file=str(out))
+    with RecordingReader(run) as src:
+        meta = src.metadata()
+        own = meta.get("run_end", {"status": "error", "reason": "the source recording has no run_end"})
+        status, reason = end if end is not None else (own.get("status", "error"), own.get("reason", ""))
+        with RecordingWriter(out, epoch_ns=src.epoch_ns(), overwrite=overwrite) as rec:
+            transcribe(src, rec, drop_topics=DUT_TOPICS, drop_metadata=("run_start", "run_end", "dut_output"))
+            rec.metadata("run_start", {**meta.get("run_start", {}), **(start_extra or {})})
+            spec = CAN_TOPICS[CAN_RX]
+            rec.columnar_topic(spec.topic, spec.schema, spec.dtype, description=spec.description, units=spec.units)
+            recorder = DutOutputRecorder(rec)
+            if result is not None:
+                for batch in _frames(result):
+                    recorder.feed(batch)
+            recorder.process()
+            if log:
+                recorder.log(log, _duration_ns(meta) or 0)
+            counts = {"solutions": recorder.solutions, "qualities": recorder.qualities, **recorder.tally.as_dict()}
+            rec.metadata("dut_output", {"solutions": str(recorder.solutions), "qualities": str(recorder.qualities),
+                                        "bad_frames": json.dumps(recorder.tally.as_dict())})
+            rec.close(status, reason)
+    return counts
+
+
+def _duration_ns(meta: dict[str, dict[str, str]]) -> int | None:
+    try:
+        return round(float(meta.get("run_start", {}).get("duration_s", "")) * 1e9)
+    except ValueError:
+        return None
+
+
+def run_clock(run: str | Path) -> tuple[GpsClock, int | None]:
+    """The GPS clock and the duration (ns, None if unknown) of a recording."""
+    with RecordingReader(run) as src:
+        epoch = src.epoch_ns()
+        if epoch == 0:
+            raise ConfigError("the recording has no run_start.epoch_utc_ns (UTC of bench time zero)", file=str(run))
+        return GpsClock.of_epoch(epoch), _duration_ns(src.metadata())
+
+
+def import_nav(nav: str | Path, run: str | Path, out: str | Path, *, std: str | Path | None = None,
+               overwrite: bool = False) -> dict[str, int]:
+    """Write ``out``: the recording ``run`` with its DUT output replaced by the result ``nav``
+    (:func:`write_output`); ``run_start.dut_import`` names the files.
+
+    Raises :class:`NavFileError` for a malformed result, :class:`ConfigError` for a recording
+    that cannot be read or an ``out`` that cannot be written.
+    """
+    clock, duration_ns = run_clock(run)
+    result = read_nav_result(nav, clock, std=std, duration_ns=duration_ns)
+    files = {"nav": str(Path(nav).resolve()), "std": str(Path(std).resolve()) if std else ""}
+    return write_output(run, out, result, start_extra={"dut_import": json.dumps(files)}, overwrite=overwrite)
