@@ -11,6 +11,7 @@ unfinished recording).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from collections.abc import Callable, Mapping
@@ -129,6 +130,28 @@ class RecordingWriter:
         self._channels[topic] = (cid, None)
         self._seq[topic] = 0
 
+    def encoded_topic(
+        self,
+        topic: str,
+        schema_name: str,
+        schema_encoding: str,
+        schema_data: bytes,
+        message_encoding: str,
+        metadata: Mapping[str, str] | None = None,
+    ) -> None:
+        """Declare a topic of messages in another encoding (the protobuf Foxglove views of
+        :mod:`bench.record.foxglove`); written with :meth:`write_encoded_many`."""
+        if topic in self._channels:
+            return
+        key = f"{schema_encoding}:{schema_name}:{hashlib.sha256(schema_data).hexdigest()}"
+        if not schema_name and not schema_encoding:  # a channel without a schema
+            self._schemas[key] = 0
+        elif key not in self._schemas:
+            self._schemas[key] = self._register(schema_name, schema_encoding, schema_data)
+        cid = self._channel(topic, message_encoding, self._schemas[key], dict(metadata or {}))
+        self._channels[topic] = (cid, None)
+        self._seq[topic] = 0
+
     def _register(self, name: str, encoding: str, data: bytes) -> int:
         if self.failed:
             return 0
@@ -198,6 +221,13 @@ class RecordingWriter:
         if self.failed:
             return
         self._do(self._w.add_metadata, name, {k: v if isinstance(v, str) else json.dumps(v) for k, v in values.items()})
+
+    def flush(self) -> None:
+        """Write the open chunk and everything buffered to the file, so that a reader sees
+        every message written so far (the file stays unfinished until :meth:`close`)."""
+        if self.failed or self._closed:
+            return
+        self._do(self._w.flush)
 
     # -- end ------------------------------------------------------------------------------
     def close(self, status: str = "complete", reason: str = "") -> None:
