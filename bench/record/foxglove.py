@@ -4,7 +4,8 @@ The views use the maintained Foxglove schemas (``foxglove_schemas_protobuf``:
 ``foxglove.LocationFix``, ``foxglove.PoseInFrame``, ``foxglove.FrameTransform``,
 ``foxglove.Log``) and, for the plot and event topics, small bench messages built at run
 time with the ``google.protobuf`` descriptor API (package ``bench.foxglove``, one message
-per schema, every field a plain scalar so Foxglove's plot panel can address it). Each
+per schema, every field a plain scalar so Foxglove's plot panel can address it; their UTC
+time is the message's log time, their ``t_s`` field bench time in s). Each
 schema is written the way ``mcap_protobuf`` writes one: schema encoding ``protobuf``, the
 data a serialized ``FileDescriptorSet`` of the message's file and its dependencies
 (:func:`mcap_protobuf.schema.build_file_descriptor_set`), message encoding ``protobuf``,
@@ -13,8 +14,8 @@ schema name the message's full name.
 What is in the views (which records, which frames) is decided above this layer
 (:mod:`bench.scoring.views`); this module only encodes arrays into messages and writes
 them as channels marked ``derived: true`` with the columnar ``source`` topics they were
-made from. Times are bench time, ns; a message's log time and its ``timestamp`` field are
-UTC (the recording's epoch plus bench time).
+made from. Times are bench time, ns; a message's log time (and the ``timestamp`` field of
+the Foxglove schemas) is UTC: the recording's epoch plus bench time.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
 from foxglove_schemas_protobuf.LocationFix_pb2 import LocationFix
 from foxglove_schemas_protobuf.Log_pb2 import Log
 from foxglove_schemas_protobuf.PoseInFrame_pb2 import PoseInFrame
-from google.protobuf import descriptor_pb2, descriptor_pool, timestamp_pb2
+from google.protobuf import descriptor_pb2, descriptor_pool
 from google.protobuf.message_factory import GetMessageClass
 from mcap_protobuf.schema import build_file_descriptor_set
 
@@ -111,9 +112,9 @@ class LogLines:
 
 @dataclass
 class Series:
-    """A plot series: message ``bench.foxglove.<schema>`` with one scalar field per column
-    (float64, or uint32 for integer columns), plus ``timestamp`` (UTC) and ``t_s`` (bench
-    time, s)."""
+    """A plot series: message ``bench.foxglove.<schema>`` with ``t_s`` (bench time, s) and
+    one scalar field per column (double, or fixed32 for integer and boolean columns); its
+    UTC time is the message's log time."""
 
     schema: str
     t_ns: np.ndarray
@@ -149,41 +150,32 @@ _POOL = descriptor_pool.DescriptorPool()
 
 
 def _build(name: str, fields: tuple[tuple[str, int], ...]) -> Any:
-    """The class of message ``bench.foxglove.<name>``: ``timestamp`` then ``fields``."""
-    if timestamp_pb2.DESCRIPTOR.name not in _added:  # the pool is private: add what the messages use
-        ts = descriptor_pb2.FileDescriptorProto()
-        timestamp_pb2.DESCRIPTOR.CopyToProto(ts)
-        _POOL.Add(ts)
-        _added.add(ts.name)
-    f = descriptor_pb2.FileDescriptorProto(
-        name=f"bench/foxglove/{name}.proto", package=PACKAGE, syntax="proto3",
-        dependency=["google/protobuf/timestamp.proto"],
-    )
+    """The class of message ``bench.foxglove.<name>`` with ``fields`` numbered from 1."""
+    f = descriptor_pb2.FileDescriptorProto(name=f"bench/foxglove/{name}.proto", package=PACKAGE, syntax="proto3")
     m = f.message_type.add(name=name)
-    m.field.add(name="timestamp", number=1, type=descriptor_pb2.FieldDescriptorProto.TYPE_MESSAGE,
-                type_name=".google.protobuf.Timestamp", label=descriptor_pb2.FieldDescriptorProto.LABEL_OPTIONAL)
-    for i, (fname, ftype) in enumerate(fields, start=2):
+    for i, (fname, ftype) in enumerate(fields, start=1):
         m.field.add(name=fname, number=i, type=ftype, label=descriptor_pb2.FieldDescriptorProto.LABEL_OPTIONAL)
     _POOL.Add(f)
     return GetMessageClass(_POOL.FindMessageTypeByName(f"{PACKAGE}.{name}"))
 
 
-_added: set[str] = set()
 _DOUBLE = descriptor_pb2.FieldDescriptorProto.TYPE_DOUBLE
-_UINT = descriptor_pb2.FieldDescriptorProto.TYPE_UINT32
+_FIXED32 = descriptor_pb2.FieldDescriptorProto.TYPE_FIXED32
 _STRING = descriptor_pb2.FieldDescriptorProto.TYPE_STRING
 
 
 @cache
 def series_class(schema: str, fields: tuple[tuple[str, bool], ...]) -> Any:
-    """The message class ``bench.foxglove.<schema>`` of a plot series: ``t_s`` (double),
-    then each ``(name, integer)`` field (uint32 if integer, else double)."""
-    return _build(schema, (("t_s", _DOUBLE), *((n, _UINT if i else _DOUBLE) for n, i in fields)))
+    """The message class ``bench.foxglove.<schema>`` of a plot series: ``t_s`` (double,
+    bench time in s), then each ``(name, integer)`` field (fixed32 if integer, else
+    double). Fixed-width fields only, so that a series is encoded as one array."""
+    return _build(schema, (("t_s", _DOUBLE), *((n, _FIXED32 if i else _DOUBLE) for n, i in fields)))
 
 
 @cache
 def event_class() -> Any:
-    """The message class ``bench.foxglove.Event`` (t_s, kind, name, value, text)."""
+    """The message class ``bench.foxglove.Event`` (t_s, kind, name, value, text; the
+    timestamp is the message's log time)."""
     return _build("Event", (("t_s", _DOUBLE), ("kind", _STRING), ("name", _STRING), ("value", _DOUBLE),
                             ("text", _STRING)))
 
@@ -250,31 +242,40 @@ def _series_fields(v: Series) -> tuple[tuple[str, bool], ...]:
                  for k, c in v.columns.items())
 
 
-def _series(epoch_ns: int, v: Series) -> tuple[Any, list[bytes]]:
-    fields = _series_fields(v)
-    cls = series_class(v.schema, fields)
-    t = np.asarray(v.t_ns, np.int64)
-    cols = [np.asarray(v.columns[k]).astype(np.int64 if i else float).tolist() for k, i in fields]
-    names = [k for k, _ in fields]
-    out = []
-    for j, (u, tb) in enumerate(zip((epoch_ns + t).tolist(), (t * 1e-9).tolist(), strict=True)):
-        m = cls(t_s=tb, **{n: c[j] for n, c in zip(names, cols, strict=True)})
-        _stamp(m, u)
-        out.append(m.SerializeToString())
-    return cls, out
+def _series(v: Series) -> tuple[Any, list[bytes]]:
+    """A series' messages, every field written (proto3 parsers take explicit zeros), all
+    of one length: encoded as the rows of one numpy record array (field tag, then the
+    value: little-endian double, wire type 1, or fixed32, wire type 5)."""
+    fields = (("t_s", False), *_series_fields(v))
+    cls = series_class(v.schema, fields[1:])
+    layout: list[tuple[str, str] | tuple[str, str, tuple[int]]] = []
+    for num, (name, integer) in enumerate(fields, start=1):
+        layout += [(f"__tag{num}", "u1", (len(_varint((num << 3) | (5 if integer else 1))),)),
+                   (name, "<u4" if integer else "<f8")]
+    rows = np.zeros(len(v.t_ns), np.dtype(layout))
+    for num, (name, integer) in enumerate(fields, start=1):
+        rows[f"__tag{num}"] = list(_varint((num << 3) | (5 if integer else 1)))
+        value = np.asarray(v.t_ns, np.int64) * 1e-9 if name == "t_s" else np.asarray(v.columns[name])
+        rows[name] = np.clip(value.astype(np.int64), 0, 2**32 - 1) if integer else value
+    buf, size = rows.tobytes(), rows.dtype.itemsize
+    return cls, [buf[i : i + size] for i in range(0, len(buf), size)]
 
 
-def _events(epoch_ns: int, v: Events) -> list[bytes]:
+def _varint(x: int) -> bytes:
+    out = bytearray()
+    while True:
+        b, x = x & 0x7F, x >> 7
+        out.append(b | (0x80 if x else 0))
+        if not x:
+            return bytes(out)
+
+
+def _events(v: Events) -> list[bytes]:
     cls = event_class()
-    out = []
-    t = np.asarray(v.t_ns, np.int64)
-    rows = zip((epoch_ns + t).tolist(), (t * 1e-9).tolist(), v.kind, v.name, np.asarray(v.value, float).tolist(),
-               v.text, strict=True)
-    for u, tb, kind, name, value, text in rows:
-        m = cls(t_s=tb, kind=kind, name=name, value=value, text=text)
-        _stamp(m, u)
-        out.append(m.SerializeToString())
-    return out
+    t = (np.asarray(v.t_ns, np.int64) * 1e-9).tolist()
+    rows = zip(t, v.kind, v.name, np.asarray(v.value, float).tolist(), v.text, strict=True)
+    return [cls(t_s=tb, kind=kind, name=name, value=value, text=text).SerializeToString()
+            for tb, kind, name, value, text in rows]
 
 
 def encode(epoch_ns: int, view: ViewTopic) -> tuple[Any, list[bytes]]:
@@ -287,8 +288,8 @@ def encode(epoch_ns: int, view: ViewTopic) -> tuple[Any, list[bytes]]:
     if isinstance(c, LogLines):
         return Log, _logs(epoch_ns, c)
     if isinstance(c, Series):
-        return _series(epoch_ns, c)
-    return event_class(), _events(epoch_ns, c)
+        return _series(c)
+    return event_class(), _events(c)
 
 
 def write_views(rec: RecordingWriter, views: Sequence[ViewTopic], extra: Mapping[str, str] | None = None) -> int:

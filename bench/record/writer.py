@@ -204,10 +204,26 @@ class RecordingWriter:
             self.write_json(topic, int(t), obj)
 
     def write_encoded_many(self, topic: str, t_ns: np.ndarray, payloads: list[bytes]) -> None:
-        """Write many messages already encoded in the topic's encoding (one per time)."""
-        epoch = self.epoch_ns
-        for t, data in zip(np.asarray(t_ns, dtype=np.int64).tolist(), payloads, strict=True):
-            self._add(topic, epoch + t, data)
+        """Write many messages already encoded in the topic's encoding (one per time), in
+        batches: one library call guard per batch rather than per message."""
+        times = (self.epoch_ns + np.asarray(t_ns, dtype=np.int64)).tolist()
+        if len(times) != len(payloads):
+            raise ValueError(f"{topic}: {len(times)} times for {len(payloads)} messages")
+        if self.failed or not times:
+            return
+        cid, _ = self._channels[topic]
+        add = self._w.add_message
+
+        def batch(lo: int, hi: int) -> None:
+            seq = self._seq[topic]
+            for k in range(lo, hi):
+                t = times[k]
+                add(cid, log_time=t, data=payloads[k], publish_time=t, sequence=seq)
+                seq += 1
+                self._seq[topic] = seq
+
+        for lo in range(0, len(times), 4096):
+            self._do(batch, lo, min(lo + 4096, len(times)))
 
     def attach(self, name: str, data: bytes, media_type: str = "text/plain") -> None:
         """Attach a file (test case, motion script, parameter set, DBC...)."""

@@ -195,9 +195,12 @@ def _dut_views(run: RunData, rate_hz: float, origin: tuple[float, float, float] 
     cols["odo_fault_class"] = qk["odo_fault_class"].astype(np.int64) * hk if qk is not None else zero
     views.append(fx.ViewTopic("/foxglove/plot/dut", fx.Series("DutPlot", dk["t_ns"], cols), src_both))
     if run.truth is not None and len(run.truth) >= 2:
-        err = nav_errors(run.truth, run.nav)
+        # scoring's errors of the valid epochs picked for display (each epoch's error is its
+        # own: computing them for the picked epochs only gives the same values, faster)
+        tr = run.truth["t_ns"]
+        ok = np.flatnonzero((d["valid"] != 0) & (d["t_ns"] >= tr[0]) & (d["t_ns"] <= tr[-1]))
+        err = nav_errors(run.truth, d[ok[display_pick(d["t_ns"][ok], rate_hz)]])
         u = np.flatnonzero(err.usable)
-        u = u[display_pick(err.t_ns[u], rate_hz)]
         ecols = {name: QUANTITIES[qty][2](err)[u] * scale for name, (qty, scale) in ERROR_FIELDS.items()}
         ecols["distance_m"] = err.distance[u]
         views.append(fx.ViewTopic("/foxglove/plot/errors", fx.Series("NavErrors", err.t_ns[u], ecols),
