@@ -6,7 +6,9 @@ sigmas squared; the pose arrows point along the drive; the plotted errors are sc
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -181,3 +183,28 @@ def test_display_rate_is_bounded(north):
         with pytest.raises(ConfigError, match=r"display rate of 10\.\.50 Hz"):
             derive_views(run, rate_hz=rate)
     assert len(derive_views(run, rate_hz=50.0)[0].content.t_ns) == 501
+
+
+def _strings(node) -> list[str]:
+    if isinstance(node, dict):
+        return [s for k, v in node.items() for s in _strings(k) + _strings(v)]
+    if isinstance(node, list):
+        return [s for v in node for s in _strings(v)]
+    return [node] if isinstance(node, str) else []
+
+
+def test_the_shipped_layout_names_topics_and_fields_that_exist(north):
+    _, _, views = north
+    layout = json.loads((Path(__file__).resolve().parents[2] / "foxglove" / "bench_run_layout.json").read_text())
+
+    def panels(node) -> list[str]:
+        return [node] if isinstance(node, str) else panels(node["first"]) + panels(node["second"])
+
+    assert sorted(panels(layout["layout"])) == sorted(layout["configById"])
+    named = [s for s in _strings(layout["configById"]) if s.startswith("/foxglove/")]
+    assert len(named) > 20
+    for s in named:
+        topic, _, field = s.partition(".")
+        assert topic in views, s
+        if field:
+            assert field in views[topic][0][1].DESCRIPTOR.fields_by_name, s
