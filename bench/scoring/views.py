@@ -13,7 +13,8 @@ They are written as protobuf channels under ``/foxglove/`` marked ``derived: tru
   sample (the first valid DUT epoch when there is no truth); ``truth_flu`` and
   ``dut_flu`` are the body frames in the forward-left-up convention (x forward, y left,
   z up; the bench's body frame is right-forward-up, turned +90 deg about z);
-* display rate: ``rate_hz`` (20 Hz by default, 10..50 Hz): each series keeps the first of
+* display rate: ``rate_hz`` (20 Hz by default, 10..50 Hz) for the plots, half of it for
+  the map, poses and transforms (:data:`SPATIAL_SHARE`): each series keeps the first of
   its records in each display period (records as recorded, never interpolated);
 * the DUT's map and pose show its valid epochs only (NAV_SOLUTION bit 5, as scoring);
   the truth's LocationFix has covariance zero of type KNOWN (the truth is exact), the DUT's
@@ -40,6 +41,7 @@ from bench.scoring.epochs import first_arrivals
 __all__ = [
     "DEFAULT_RATE_HZ",
     "RATE_RANGE_HZ",
+    "SPATIAL_SHARE",
     "WORLD_FRAME",
     "TRUTH_FRAME",
     "DUT_FRAME",
@@ -54,6 +56,9 @@ __all__ = [
 
 DEFAULT_RATE_HZ = 20.0
 RATE_RANGE_HZ = (10.0, 50.0)
+#: the map, pose and transform topics at this share of the display rate (10 Hz of 20 Hz):
+#: a third of the view messages of a run each, where a map or a 3-D arrow needs no more
+SPATIAL_SHARE = 0.5
 WORLD_FRAME = "enu_start"
 TRUTH_FRAME = "truth_flu"
 DUT_FRAME = "dut_flu"
@@ -118,14 +123,15 @@ def _valid(nav: np.ndarray) -> np.ndarray:
 
 
 def _truth_views(truth: np.ndarray, rate_hz: float, origin: tuple[float, float, float]) -> list[fx.ViewTopic]:
-    td = truth[display_pick(truth["t_ns"], rate_hz)]
+    td = truth[display_pick(truth["t_ns"], rate_hz * SPATIAL_SHARE)]
     t, n = td["t_ns"], len(td)
     fixes = fx.Fixes(t, td["lat"], td["lon"], td["h"], td["euler"][:, 0], td["vel_n"], np.zeros((n, 3)),
                      np.full(n, fx.COVARIANCE_KNOWN), TRUTH_FRAME, _TRUTH_COLOR)
     poses = fx.Poses(t, _enu(td["lat"], td["lon"], td["h"], origin), flu_quaternion(td["q_bn"]), WORLD_FRAME,
                      TRUTH_FRAME)
+    td = truth[display_pick(truth["t_ns"], rate_hz)]
     e = td["euler"] * _DEG
-    plot = fx.Series("TruthPlot", t, {
+    plot = fx.Series("TruthPlot", td["t_ns"], {
         "heading_deg": e[:, 0], "pitch_deg": e[:, 1], "roll_deg": e[:, 2],
         "speed_mps": np.linalg.norm(td["vel_n"], axis=1), "vel_east_mps": td["vel_n"][:, 0],
         "vel_north_mps": td["vel_n"][:, 1], "vel_up_mps": td["vel_n"][:, 2], "height_m": td["h"],
@@ -153,7 +159,7 @@ def _dut_views(run: RunData, rate_hz: float, origin: tuple[float, float, float] 
     views: list[fx.ViewTopic] = []
     src_nav, src_both = [NAV_SOLUTION], [NAV_SOLUTION, NAV_QUALITY]
     v = np.flatnonzero(_valid(d))
-    v = v[display_pick(d["t_ns"][v], rate_hz)]
+    v = v[display_pick(d["t_ns"][v], rate_hz * SPATIAL_SHARE)]
     if len(v) and origin is not None:
         dv, sig_ok = d[v], has_q[v]
         cov = q["sigma_pos"][v] ** 2 if q is not None else np.zeros((len(v), 3))
