@@ -214,6 +214,15 @@ def _dut_views(run: RunData, rate_hz: float, origin: tuple[float, float, float] 
     return views
 
 
+def _command_code(doc: dict[str, Any]) -> int:
+    """The BENCH_CMD code of a ``/bench/commands`` document (1 grid, 2 geographic, 3 reset;
+    the synthetic runner records the name only)."""
+    try:
+        return int(doc["code"])
+    except (KeyError, TypeError, ValueError):
+        return {"grid": 1, "geographic": 2, "reset": 3}.get(str(doc.get("command")), 0)
+
+
 def _bench_views(run: RunData, rate_hz: float, span: tuple[int, int] | None) -> list[fx.ViewTopic]:
     """Injected fault windows and commanded frames, at the display rate and as events."""
     views: list[fx.ViewTopic] = []
@@ -230,9 +239,9 @@ def _bench_views(run: RunData, rate_hz: float, span: tuple[int, int] | None) -> 
                 count[w.layer] += on
         frame = np.full(len(t), -1.0)
         for c in sorted(run.commands, key=lambda c: int(c.get("t_ns", 0))):
-            code = c.get("code") or {"grid": 1, "geographic": 2}.get(str(c.get("command")), 0)
-            if int(code) in (1, 2):
-                frame[t >= int(c["t_ns"])] = 1.0 if int(code) == 1 else 0.0
+            code = _command_code(c)
+            if code in (1, 2):
+                frame[t >= int(c.get("t_ns", 0))] = 1.0 if code == 1 else 0.0
         cols: dict[str, np.ndarray] = {"faults_active": total, "faults_sensor": count["sensor"],
                                        "faults_wire": count["wire"], "commanded_frame": frame}
         views.append(fx.ViewTopic("/foxglove/plot/bench", fx.Series("BenchPlot", t, cols), [FAULTS, COMMANDS]))
@@ -242,7 +251,7 @@ def _bench_views(run: RunData, rate_hz: float, span: tuple[int, int] | None) -> 
         ev += [(w.start_ns, "fault_start", f"fault_{w.id}", 1.0, what), (w.end_ns, "fault_end", f"fault_{w.id}", 0.0,
                                                                           what)]
     for c in run.commands:
-        ev.append((int(c.get("t_ns", 0)), "command", str(c.get("command", "")), float(c.get("code", 0) or 0), ""))
+        ev.append((int(c.get("t_ns", 0)), "command", str(c.get("command", "")), float(_command_code(c)), ""))
     if run.nav is not None and len(run.nav):
         d = first_arrivals(run.nav)
         for i in np.flatnonzero(np.diff(d["frame"].astype(np.int64)) != 0) + 1:
