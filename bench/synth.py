@@ -20,6 +20,8 @@ from bench.run.source import RunSource
 from bench.runinfo import git_commit, host_metadata, parse_epoch
 from bench.scenario.loader import Scenario
 from bench.scenario.trajectory import Trajectory
+from bench.scoring.views import check_rate
+from bench.scoring.viewwrite import add_views
 from bench.sensors.base import SensorModel
 from bench.sensors.suite import fault_schedule
 
@@ -37,7 +39,8 @@ class SynthOptions:
     imu_rate_hz: float | None = None
     imu_grade: str | None = None
     truth_rate_hz: float = 100.0
-    display_rate_hz: float = 5.0
+    #: Rate of the Foxglove views written when the file is finished (10..50 Hz).
+    display_rate_hz: float = 20.0
     write_ideal: bool = True
     window_s: float = 10.0
     #: Fault files (``[[fault]]`` tables) added to the scenario's own ``[[fault]]`` tables.
@@ -106,12 +109,13 @@ def synthesize(
         Writing failed part way (a full disk); the file keeps what was written.
     """
     options = options or SynthOptions()
+    check_rate(options.display_rate_hz)
     started = time.perf_counter()
     file = str(scenario.path)
     schedule = faults if faults is not None else fault_schedule(scenario.doc, file=file, extra=options.fault_files)
     source = RunSource(scenario, scenario.doc, options.seed, schedule, trajectory=trajectory,
                        imu_grade=options.imu_grade, imu_rate_hz=options.imu_rate_hz,
-                       truth_rate_hz=options.truth_rate_hz, display_rate_hz=options.display_rate_hz,
+                       truth_rate_hz=options.truth_rate_hz,
                        write_ideal=options.write_ideal, sensors=sensors)
     epoch = epoch_of(scenario)
     total_ns = source.duration_ns
@@ -132,6 +136,7 @@ def synthesize(
         stats = source.stats
         rec.metadata("synth_summary", {"duration_s": f"{total_ns / 1e9:.9g}", "distance_m": f"{stats.distance_m:.3f}",
                                        "max_speed_mps": f"{stats.max_speed:.6f}", "counts": stats.counts})
+        add_views(rec, options.display_rate_hz)
     return SynthSummary(
         path=Path(out),
         scenario=scenario.id,

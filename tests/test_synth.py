@@ -4,6 +4,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from foxglove_schemas_protobuf.LocationFix_pb2 import LocationFix
 
 from bench.cli import main
 from bench.record.mcap_io import RecordingReader
@@ -26,7 +27,8 @@ def test_synth_writes_truth_and_imu(tmp_path):
     assert s.duration_s == pytest.approx(90.0)
     r = RecordingReader(out)
     topics = r.topics()
-    for t in ("/truth", "/imu", "/imu/ideal", "/truth/location", "/truth/pose", "/scenario/segments"):
+    for t in ("/truth", "/imu", "/imu/ideal", "/foxglove/truth/location", "/foxglove/truth/pose",
+              "/scenario/segments"):
         assert t in topics, t
     imu = r.read_columnar("/imu")
     ideal = r.read_columnar("/imu/ideal")
@@ -42,9 +44,12 @@ def test_synth_writes_truth_and_imu(tmp_path):
     segs = next(r.iter_json("/scenario/segments"))[1]["segments"]
     assert [s["kind"] for s in segs][:3] == ["static", "accelerate", "turn"]
     assert segs[7]["surface"] == "gravel"
-    # Foxglove map: LocationFix in degrees at the display rate, log time in UTC of the scenario epoch
-    t_log, fix = next(r.iter_json("/truth/location"))
-    assert fix["latitude"] == pytest.approx(34.246) and t_log == 1772352000 * 10**9
+    # Foxglove map: protobuf LocationFix in degrees at the display rate, log time in UTC of the scenario epoch
+    t_log, data = next((t, d) for topic, t, d in r.iter_raw(["/foxglove/truth/location"]))
+    fix = LocationFix.FromString(data)
+    assert fix.latitude == pytest.approx(34.246) and t_log == 1772352000 * 10**9
+    assert topics["/foxglove/truth/location"].messages == 90 * 10 + 1  # 10 Hz
+    assert topics["/foxglove/plot/truth"].messages == 90 * 20 + 1  # 20 Hz
 
 
 def test_same_seed_identical_payloads_other_seed_other_noise(tmp_path):

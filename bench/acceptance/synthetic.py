@@ -34,6 +34,7 @@ from bench.scenario.loader import Scenario, load_scenario
 from bench.scenario.records import TRUTH_TOPIC, truth_records
 from bench.scenario.trajectory import Trajectory, truth_at
 from bench.scoring.data import BAD_FRAMES, COMMANDS, SEGMENTS
+from bench.scoring.viewwrite import add_views
 from bench.topics import NAV_QUALITY_TOPIC, NAV_SOLUTION_TOPIC
 
 __all__ = ["SyntheticRunner", "case_trajectory", "epoch_ns"]
@@ -138,6 +139,7 @@ class SyntheticRunner:
                 rec.write_json(BAD_FRAMES, b["t_ns"], b)
             if progress is not None:
                 progress(total_s, total_s)
+            add_views(rec)
             status = spec.bench_status
             rec.close(status, "" if status == "complete" else "bench_status set by the synthetic DUT (test hook)")
         return out

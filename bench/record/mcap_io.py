@@ -8,8 +8,11 @@ Two kinds of topics:
   ``numpy.frombuffer(data, dtype)``; every record carries its own ``t_ns``. This is how
   every sample of a run fits in the file at the rates a bench runs at.
 * **json** topics carry one JSON document per message (``jsonschema`` schemas), used for
-  the Foxglove well-known schemas (``foxglove.LocationFix``, ``foxglove.PoseInFrame``) so
-  a recording opens in Foxglove Studio with a map and plots, and for sparse events.
+  sparse events (fault windows, segments, commands, bad frames, DUT log lines).
+
+The Foxglove views (``/foxglove/...``: map, poses, transforms, log, plots) are protobuf
+channels derived from these topics when a recording is finished
+(:mod:`bench.record.foxglove`, :mod:`bench.scoring.viewwrite`).
 
 Message log times are UTC nanoseconds: the run's epoch (UTC of bench time zero) plus the
 bench time of the first record in the message. Recordings are zstd-chunked with CRCs.

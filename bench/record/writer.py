@@ -11,6 +11,7 @@ unfinished recording).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from collections.abc import Callable, Mapping
@@ -150,6 +151,28 @@ class RecordingWriter:
         (UTC ns, not bench time)."""
         self._add(topic, int(log_time_ns), data)
 
+    def encoded_topic(
+        self,
+        topic: str,
+        schema_name: str,
+        schema_encoding: str,
+        schema_data: bytes,
+        message_encoding: str,
+        metadata: Mapping[str, str] | None = None,
+    ) -> None:
+        """Declare a topic of messages in another encoding (the protobuf Foxglove views of
+        :mod:`bench.record.foxglove`); written with :meth:`write_encoded_many`."""
+        if topic in self._channels:
+            return
+        key = f"{schema_encoding}:{schema_name}:{hashlib.sha256(schema_data).hexdigest()}"
+        if not schema_name and not schema_encoding:  # a channel without a schema
+            self._schemas[key] = 0
+        elif key not in self._schemas:
+            self._schemas[key] = self._register(schema_name, schema_encoding, schema_data)
+        cid = self._channel(topic, message_encoding, self._schemas[key], dict(metadata or {}))
+        self._channels[topic] = (cid, None)
+        self._seq[topic] = 0
+
     def _register(self, name: str, encoding: str, data: bytes) -> int:
         if self.failed:
             return 0
@@ -202,10 +225,26 @@ class RecordingWriter:
             self.write_json(topic, int(t), obj)
 
     def write_encoded_many(self, topic: str, t_ns: np.ndarray, payloads: list[bytes]) -> None:
-        """Write many messages already encoded in the topic's encoding (one per time)."""
-        epoch = self.epoch_ns
-        for t, data in zip(np.asarray(t_ns, dtype=np.int64).tolist(), payloads, strict=True):
-            self._add(topic, epoch + t, data)
+        """Write many messages already encoded in the topic's encoding (one per time), in
+        batches: one library call guard per batch rather than per message."""
+        times = (self.epoch_ns + np.asarray(t_ns, dtype=np.int64)).tolist()
+        if len(times) != len(payloads):
+            raise ValueError(f"{topic}: {len(times)} times for {len(payloads)} messages")
+        if self.failed or not times:
+            return
+        cid, _ = self._channels[topic]
+        add = self._w.add_message
+
+        def batch(lo: int, hi: int) -> None:
+            seq = self._seq[topic]
+            for k in range(lo, hi):
+                t = times[k]
+                add(cid, log_time=t, data=payloads[k], publish_time=t, sequence=seq)
+                seq += 1
+                self._seq[topic] = seq
+
+        for lo in range(0, len(times), 4096):
+            self._do(batch, lo, min(lo + 4096, len(times)))
 
     def attach(self, name: str, data: bytes, media_type: str = "text/plain") -> None:
         """Attach a file (test case, motion script, parameter set, DBC...)."""
@@ -219,6 +258,13 @@ class RecordingWriter:
         if self.failed:
             return
         self._do(self._w.add_metadata, name, {k: v if isinstance(v, str) else json.dumps(v) for k, v in values.items()})
+
+    def flush(self) -> None:
+        """Write the open chunk and everything buffered to the file, so that a reader sees
+        every message written so far (the file stays unfinished until :meth:`close`)."""
+        if self.failed or self._closed:
+            return
+        self._do(self._w.flush)
 
     # -- end ------------------------------------------------------------------------------
     def close(self, status: str = "complete", reason: str = "") -> None:

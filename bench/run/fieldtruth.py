@@ -23,7 +23,6 @@ from pathlib import Path
 import numpy as np
 
 from bench.errors import ConfigError
-from bench.record.foxglove import LOCATION_FIX, location_fix_json
 from bench.record.mcap_io import RecordingWriter
 from bench.run.source import SEGMENTS_TOPIC, time_grid
 from bench.scenario.records import TRUTH_TOPIC, truth_records
@@ -68,7 +67,7 @@ class TruthTrack:
 
 
 class TruthWriter:
-    """Writes a :class:`TruthTrack` as ``/truth`` (and its map view) window by window.
+    """Writes a :class:`TruthTrack` as ``/truth`` window by window.
 
     Parameters
     ----------
@@ -80,7 +79,7 @@ class TruthWriter:
         Length of the replay; the track must overlap ``[0, duration]``.
     """
 
-    def __init__(self, track: TruthTrack, epoch_ns: int, duration_ns: int, display_rate_hz: float = 5.0):
+    def __init__(self, track: TruthTrack, epoch_ns: int, duration_ns: int):
         path = Path(track.path)
         if track.time not in TRUTH_TIMES:
             raise ConfigError(f"expected truth time 'bench' or 'utc', found {track.time!r}", key="truth_time")
@@ -103,7 +102,6 @@ class TruthWriter:
         self.traj = SampledTrajectory(samples, smoothing=track.smoothing)
         self.end_ns = self.zero_ns + self.traj.duration_ns
         self.epoch_ns = epoch_ns
-        self.display_rate_hz = display_rate_hz
         self.written = 0
 
     def describe(self) -> str:
@@ -121,12 +119,11 @@ class TruthWriter:
         )
 
     def declare(self, rec: RecordingWriter) -> None:
-        """Declare ``/truth``, its map view and the track's segment (in bench time)."""
+        """Declare ``/truth`` and the track's segment (in bench time)."""
         s = TRUTH_TOPIC
         rec.columnar_topic(
             s.topic, s.schema, s.dtype, description=f"{s.description}; from {self.track.path}", units=s.units
         )
-        rec.json_topic("/truth/location", "foxglove.LocationFix", LOCATION_FIX)
         rec.json_topic(SEGMENTS_TOPIC, "bench.Segments", {"type": "object"})
         z = self.zero_ns / 1e9
         rec.write_json(
@@ -160,10 +157,6 @@ class TruthWriter:
             records["t_ns"] = t
             rec.write_block(TRUTH_TOPIC.topic, records)
             self.written += len(t)
-        t = self._covered(time_grid(self.display_rate_hz, t0_ns, t1_ns, include_start=first))
-        if len(t):
-            k = self.traj.kinematics((t - self.zero_ns) * 1e-9)
-            rec.write_encoded_many("/truth/location", t, location_fix_json(self.epoch_ns, t, k.lat, k.lon, k.h))
 
     def counts(self) -> dict[str, int]:
         """Records written."""

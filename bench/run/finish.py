@@ -1,6 +1,8 @@
 """How a run is finished, whatever ended it: the ending noted (:func:`note_ending`), then
 every cleanup step guarded (:func:`finish`): the scheduling policy given back, the DUT
-shut down, its output, the timing and the run summary recorded, and ``run_end`` written.
+shut down, its output, the timing and the run summary recorded, the Foxglove views derived
+from the recording (:mod:`bench.scoring.viewwrite`; not after an interrupt), and ``run_end``
+written.
 A failing step is noted in the reason and the others still run; an interrupt during the
 cleanup (a third signal: the DUT is killed at once) is raised once the file is finished.
 """
@@ -19,6 +21,7 @@ from bench.crashlog import write_traceback
 from bench.errors import BenchError, DutError
 from bench.run.result import reason_of, status_of
 from bench.run.session import RunSession
+from bench.scoring.viewwrite import add_views
 
 __all__ = ["note_ending", "finish"]
 
@@ -108,6 +111,8 @@ def finish(s: RunSession, interrupt: KeyboardInterrupt | None) -> KeyboardInterr
         )
 
     guarded("run_summary", finish_summary)
+    if result.status != "interrupted" and not late:  # derived from what was recorded, so last
+        guarded("writing the Foxglove views", lambda: add_views(rec))
     if late and interrupt is None:
         interrupt = late[0]
         if result.status == "complete":

@@ -3,8 +3,9 @@
 Every frame from the DUT is recorded raw (``/wire/can/rx``), decoded with the checks of
 :class:`~bench.wire.receive.NavReceiver` into ``/dut/nav_solution`` and
 ``/dut/nav_quality``, DUT_READY times go to ``/dut/ready``, every bad frame to
-``/dut/bad_frames`` (never fatal), and the solution is also shown on the Foxglove map
-(``/dut/location``). The DUT's standard output and error go to ``/dut/log``.
+``/dut/bad_frames`` (never fatal). The DUT's standard output and error go to ``/dut/log``.
+The Foxglove views of all this (map, pose, plots, ``foxglove.Log``) are derived from the
+recording when the run is finished (:mod:`bench.scoring.viewwrite`).
 """
 
 from __future__ import annotations
@@ -13,14 +14,13 @@ import numpy as np
 
 from bench.dut.process import LogLine
 from bench.frames import CanBatch
-from bench.record.foxglove import LOCATION_FIX, location_fix_json
 from bench.record.mcap_io import RecordingWriter
 from bench.record.wire_topics import CAN_RX, write_can
 from bench.topics import NAV_QUALITY_TOPIC, NAV_SOLUTION_TOPIC, TopicSpec
 from bench.wire.receive import NavReceiver
 from bench.wire.tally import Tally
 
-__all__ = ["DutOutputRecorder", "READY_TOPIC", "BAD_FRAMES_TOPIC", "LOG_TOPIC", "LOCATION_TOPIC"]
+__all__ = ["DutOutputRecorder", "READY_TOPIC", "BAD_FRAMES_TOPIC", "LOG_TOPIC"]
 
 READY_TOPIC = TopicSpec(
     "/dut/ready",
@@ -31,7 +31,6 @@ READY_TOPIC = TopicSpec(
 )
 BAD_FRAMES_TOPIC = "/dut/bad_frames"
 LOG_TOPIC = "/dut/log"
-LOCATION_TOPIC = "/dut/location"
 
 
 class DutOutputRecorder:
@@ -41,16 +40,12 @@ class DutOutputRecorder:
     ----------
     rec:
         The run's recording (wire topics already declared).
-    display_period_ns:
-        Spacing of the Foxglove map points of the DUT solution.
     """
 
-    def __init__(self, rec: RecordingWriter, display_period_ns: int = 200_000_000):
+    def __init__(self, rec: RecordingWriter):
         self.rec = rec
         self.tally = Tally()
         self.receiver = NavReceiver(tally=self.tally)
-        self.display_period_ns = display_period_ns
-        self._next_display = 0
         #: When True, :meth:`feed` only keeps the frames; :meth:`process` decodes and records
         #: them later (real-time runs keep recording work out of the emission loop).
         self.deferred = False
@@ -82,7 +77,6 @@ class DutOutputRecorder:
                 "properties": {"t_ns": {"type": "integer"}, "stream": {"type": "string"}, "text": {"type": "string"}},
             },
         )
-        rec.json_topic(LOCATION_TOPIC, "foxglove.LocationFix", LOCATION_FIX)
 
     def feed(self, frames: CanBatch) -> None:
         """Record and decode a batch of received frames (``t_ns`` = arrival, bench time)."""
@@ -113,7 +107,6 @@ class DutOutputRecorder:
         if len(out.solutions):
             self.rec.write_block(NAV_SOLUTION_TOPIC.topic, out.solutions)
             self.solutions += len(out.solutions)
-            self._display(out.solutions)
         if len(out.qualities):
             self.rec.write_block(NAV_QUALITY_TOPIC.topic, out.qualities)
             self.qualities += len(out.qualities)
@@ -132,22 +125,6 @@ class DutOutputRecorder:
                 b.t_ns,
                 {"t_ns": b.t_ns, "link": b.stream, "kind": b.kind, "detail": b.reason, "data": b.data.hex()},
             )
-
-    def _display(self, sol: np.ndarray) -> None:
-        t = sol["t_ns"]
-        pick = np.flatnonzero(t >= self._next_display)
-        if pick.size == 0:
-            return
-        # one point per display period
-        slot = t[pick] // self.display_period_ns
-        first = pick[np.concatenate([[True], np.diff(slot) > 0])]
-        self._next_display = int((t[first[-1]] // self.display_period_ns + 1) * self.display_period_ns)
-        s = sol[first]
-        self.rec.write_encoded_many(
-            LOCATION_TOPIC,
-            s["t_ns"],
-            location_fix_json(self.rec.epoch_ns, s["t_ns"], s["lat"], s["lon"], s["h"], frame_id="dut"),
-        )
 
     def log(self, lines: list[LogLine], t_ns: int) -> None:
         """Record output lines of the DUT process at bench time ``t_ns``."""

@@ -4,8 +4,9 @@
 engine (which also encodes them onto the links). It builds the trajectory with the
 schedule's body-motion faults, the IMU and the aiding-sensor suite from the sensor
 tables, declares their topics and run metadata on a recording, and for each window of
-bench time writes the truth (at the truth rate, plus Foxglove views at the display rate)
-and returns the sensor records.
+bench time writes the truth (at the truth rate) and returns the sensor records. The
+Foxglove views are derived from the recording when it is finished
+(:mod:`bench.scoring.viewwrite`).
 """
 
 from __future__ import annotations
@@ -23,8 +24,6 @@ from bench.config.table import check_keys
 from bench.errors import ConfigError
 from bench.faults.motion import with_motion_faults
 from bench.faults.schedule import FAULT_JSON_SCHEMA, FAULT_TOPIC, FaultSchedule
-from bench.nav import earth
-from bench.record.foxglove import LOCATION_FIX, POSE_IN_FRAME, location_fix_json, pose_json
 from bench.record.mcap_io import RecordingWriter
 from bench.scenario.loader import Scenario
 from bench.scenario.records import TRUTH_TOPIC, truth_records
@@ -109,8 +108,8 @@ class RunSource:
         A trajectory already built from the scenario (built here otherwise).
     imu_grade, imu_rate_hz:
         Overrides of the ``[imu]`` table.
-    truth_rate_hz, display_rate_hz:
-        Rates of ``/truth`` and of the Foxglove truth views.
+    truth_rate_hz:
+        Rate of ``/truth``.
     write_ideal:
         Also record the error-free IMU increments.
     duration_ns:
@@ -130,7 +129,6 @@ class RunSource:
         imu_grade: str | None = None,
         imu_rate_hz: float | None = None,
         truth_rate_hz: float = 100.0,
-        display_rate_hz: float = 5.0,
         write_ideal: bool = True,
         duration_ns: int | None = None,
         sensors: Sequence[SensorModel] | None = None,
@@ -140,7 +138,6 @@ class RunSource:
         self.seed = seed
         self.schedule = schedule
         self.truth_rate_hz = truth_rate_hz
-        self.display_rate_hz = display_rate_hz
         self.grade, self.imu_rate_hz = imu_settings(tables.get("imu"), file=file, grade=imu_grade, rate_hz=imu_rate_hz)
         self.base_trajectory = trajectory or scenario.trajectory()
         self.trajectory = with_motion_faults(self.base_trajectory, schedule)
@@ -158,8 +155,6 @@ class RunSource:
                 key="duration",
             )
         self.duration_ns = full if duration_ns is None else int(duration_ns)
-        t0 = truth_at(self.trajectory, np.array([0], dtype=np.int64))
-        self._origin = (float(t0.lat[0]), float(t0.lon[0]), float(t0.h[0]))
         self.stats = SourceStats()
 
     @property
@@ -220,8 +215,6 @@ class RunSource:
         for spec in [TRUTH_TOPIC, *self.sensor_topics]:
             rec.columnar_topic(spec.topic, spec.schema, spec.dtype, description=spec.description, units=spec.units)
             self.stats.counts.setdefault(spec.topic, 0)
-        rec.json_topic("/truth/location", "foxglove.LocationFix", LOCATION_FIX)
-        rec.json_topic("/truth/pose", "foxglove.PoseInFrame", POSE_IN_FRAME)
 
     def produce(self, rec: RecordingWriter, t0_ns: int, t1_ns: int) -> dict[str, np.ndarray]:
         """Write the truth of ``(t0, t1]`` (``[0, t1]`` for the first window) and the sensor
@@ -234,13 +227,6 @@ class RunSource:
             rec.write_block(TRUTH_TOPIC.topic, truth_records(tr, traj.segment_at(t_truth * 1e-9)))
             self.stats.counts[TRUTH_TOPIC.topic] += len(t_truth)
             self.stats.add_truth(t_truth, tr.vel_n)
-        t_disp = time_grid(self.display_rate_hz, t0_ns, t1_ns, include_start=first)
-        if len(t_disp):
-            td = truth_at(traj, t_disp)
-            enu = earth.ecef_to_enu(earth.geodetic_to_ecef(td.lat, td.lon, td.h), *self._origin)
-            epoch = rec.epoch_ns
-            rec.write_encoded_many("/truth/location", t_disp, location_fix_json(epoch, t_disp, td.lat, td.lon, td.h))
-            rec.write_encoded_many("/truth/pose", t_disp, pose_json(epoch, t_disp, enu, td.q_bn))
         out: dict[str, np.ndarray] = {}
         for m in self.models:
             for topic, records in m.run(traj, t0_ns, t1_ns).items():

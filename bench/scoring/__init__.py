@@ -7,4 +7,8 @@ validity (:mod:`~bench.scoring.align`), windows are resolved against the run
 accuracy, fault detection and isolation, frame-switch smoothness, consistency and
 output quality and integrity (:mod:`~bench.scoring.epochs`; catalogue in
 :mod:`~bench.scoring.metrics`). See ``docs/scoring.md``.
+
+The same functions make the Foxglove views of a recording (:mod:`~bench.scoring.views`,
+written into it by :mod:`~bench.scoring.viewwrite`): derived for display, never read back
+by scoring.
 """

@@ -28,6 +28,7 @@ from bench.topics import NAV_QUALITY_TOPIC, NAV_SOLUTION_TOPIC
 __all__ = [
     "RunData",
     "load_run",
+    "read_run",
     "ScoringError",
     "NoDataError",
     "DutDataError",
@@ -158,6 +159,11 @@ def load_run(path: str | Path) -> RunData:
     Raises :class:`~bench.errors.ConfigError` when the file is not a bench recording."""
     with RecordingReader(path) as reader:
         return _load(reader, Path(path))
+
+
+def read_run(reader: RecordingReader) -> RunData:
+    """:func:`load_run` of a recording already open in ``reader``."""
+    return _load(reader, reader.path)
 
 
 def _load(reader: RecordingReader, path: Path) -> RunData:

@@ -55,7 +55,8 @@ def test_allan_of_a_recording(tmp_path, capsys):
     assert "times the Earth rate" in out and "figures withdrawn" in out
     # a topic that is not there, and one that holds something else
     assert main(["imu", "allan", str(rec), "--topic", "/nope"]) == 2
-    assert "no topic '/nope' in the recording (found /faults, /imu" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "no topic '/nope' in the recording (found /faults, /foxglove/" in err and ", /imu, /imu/ideal, " in err
     assert main(["imu", "allan", str(rec), "--topic", "/truth"]) == 2
     assert "topic /truth holds t_ns, lat, lon" in capsys.readouterr().err
 

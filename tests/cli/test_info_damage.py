@@ -28,7 +28,7 @@ def test_info_names_the_damaged_chunk_and_shows_the_rest(tmp_path, capsys):
     line = next(x for x in out.splitlines() if x.startswith("  damaged:"))
     assert f"chunk {n // 2} at byte {c.offset} ({c.length} B), messages logged at bench time" in line
     assert "/imu" in line and "CRC mismatch" in line
-    assert "ended: complete" in out and "/truth/pose" in out  # the rest is shown
+    assert "ended: complete" in out and "/foxglove/truth/pose" in out  # the rest is shown
     assert main(["info", str(rec), "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
     (dmg,) = d["damage"]

@@ -9,9 +9,14 @@ from bench.record.scan import scan
 
 
 def killed(src: Path, dst: Path) -> Path:
-    """What SIGKILL two thirds into the run leaves (no summary, no footer)."""
+    """What SIGKILL two thirds into the run leaves (no summary, no footer, and none of the
+    Foxglove views, which a finished run writes at its end)."""
     data = src.read_bytes()
-    dst.write_bytes(data[: len(data) * 2 // 3])
+    idx = scan(src)
+    views = {cid for cid, ch in idx.channels.items() if ch.topic.startswith("/foxglove/")}
+    end = min((c.offset for c in idx.chunks if views.intersection(c.counts)), default=len(data))
+    idx.close()
+    dst.write_bytes(data[: end * 2 // 3])
     return dst
 
 

@@ -1,0 +1,43 @@
+"""``bench views RECORDING -o OUT``: a copy of a recording with its Foxglove views.
+
+Recordings made before the protobuf views (or whose views should be made again, at another
+display rate) get them here: every record of the recording is copied as it was (the
+columnar topics, JSON events, metadata, attachments and the ``run_end`` record), its old
+views (``/foxglove/...`` and the JSON ``foxglove.LocationFix``/``PoseInFrame`` topics of
+older recordings) are left out, and fresh views are derived from the copy's sources
+(``docs/recording.md``, "Foxglove views"). The copy scores exactly as the original.
+Only a finished, undamaged recording is copied (exit 2 otherwise); an existing output is
+refused without ``--force``.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+__all__ = ["register"]
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``views`` subcommand."""
+    p = sub.add_parser("views", help="write a copy of a recording with its Foxglove views",
+                       description="Copy a finished recording record for record and add the Foxglove views "
+                       "(map, poses, transforms, log, plots at the display rate, events) derived from it.")
+    p.add_argument("recording", help="MCAP recording of a run")
+    p.add_argument("-o", "--output", required=True, help="output MCAP file")
+    p.add_argument("--rate", type=float, default=20.0, help="display rate of the plot and map topics, Hz "
+                   "(10..50, default 20)")
+    p.add_argument("--force", action="store_true", help="overwrite an existing output file")
+    p.set_defaults(handler=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    from bench.record.lock import preflight
+    from bench.scoring.views import check_rate
+    from bench.scoring.viewwrite import copy_with_views
+    from bench.textsafe import for_terminal
+
+    check_rate(args.rate)
+    preflight(args.output, force=args.force)
+    n = copy_with_views(args.recording, args.output, rate_hz=args.rate, overwrite=args.force)
+    print(for_terminal(f"{args.output}: {n} view messages"))
+    return 0
