@@ -49,7 +49,9 @@ __all__ = ["run", "interrupts", "EXIT_OK", "EXIT_FAIL", "EXIT_USAGE", "EXIT_ERRO
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_ERROR = 0, 1, 2, 3
 
 #: Modules under bench.cli that each provide ``register(subparsers)``.
-SUBCOMMANDS = ["synth", "run", "replay", "info", "imu", "score", "accept", "report", "compare", "fmu", "exchange", "views"]
+SUBCOMMANDS = [
+    "synth", "run", "replay", "info", "imu", "score", "accept", "report", "compare", "fmu", "exchange", "views",
+]
 
 
 def build_parser() -> argparse.ArgumentParser:

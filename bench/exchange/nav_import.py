@@ -8,10 +8,10 @@ in [0, 2 pi); geographic frame, mode 5 (multi-sensor), valid -- the format has n
 validity flag), every STD line at the time of an epoch a NAV_QUALITY record. Both are
 encoded into the ICD's CAN FD frames by the DUT side's encoder and received by the bench's
 receiver exactly as a live DUT's frames are (:class:`bench.run.output.DutOutputRecorder`:
-``/wire/can/rx``, ``/dut/nav_solution``, ``/dut/nav_quality``, ``/dut/bad_frames``,
-``/dut/location``), arriving at their time of validity (as in lockstep).
+``/wire/can/rx``, ``/dut/nav_solution``, ``/dut/nav_quality``, ``/dut/bad_frames``),
+arriving at their time of validity (as in lockstep).
 
-The new recording holds everything else of the run as it was (:func:`bench.record.transcribe.transcribe`),
+The new recording holds everything else of the run as it was (:func:`bench.record.copy.copy_records`),
 ``run_start`` with ``dut_import`` naming the result, and the run's own ``run_end``, so
 ``bench score`` judges it like any run.
 """
@@ -29,10 +29,11 @@ from bench.errors import ConfigError
 from bench.exchange.gpstime import GpsClock
 from bench.exchange.i2nav_text import NAV_COLUMNS, STD_COLUMNS, enu_to_ned, read_table
 from bench.frames import CanBatch
+from bench.record.copy import copy_records
 from bench.record.mcap_io import RecordingReader, RecordingWriter
-from bench.record.transcribe import transcribe
 from bench.record.wire_topics import CAN_RX, CAN_TOPICS
-from bench.run.output import BAD_FRAMES_TOPIC, LOCATION_TOPIC, LOG_TOPIC, READY_TOPIC, DutOutputRecorder
+from bench.run.output import BAD_FRAMES_TOPIC, LOG_TOPIC, READY_TOPIC, DutOutputRecorder
+from bench.scoring.viewwrite import add_views, is_view
 from bench.topics import NAV_QUALITY_DTYPE, NAV_QUALITY_TOPIC, NAV_SOLUTION_DTYPE, NAV_SOLUTION_TOPIC
 from bench.wire.can import CanEncoder
 
@@ -40,7 +41,7 @@ __all__ = ["NavFileError", "NavResult", "read_nav_result", "import_nav", "write_
 
 #: The topics a DUT's output fills; an import replaces them.
 DUT_TOPICS = (NAV_SOLUTION_TOPIC.topic, NAV_QUALITY_TOPIC.topic, READY_TOPIC.topic, BAD_FRAMES_TOPIC, LOG_TOPIC,
-              LOCATION_TOPIC, CAN_RX)
+              CAN_RX)
 #: What the ICD's NAV_SOLUTION can carry (int32 fields): larger values cannot be a DUT's output
 _WIRE_LIMITS = {"lat": 214.0, "lon": 214.0, "h": 2.1e6, "vel_n": 2.1e5, "vel_e": 2.1e5, "vel_d": 2.1e5}
 _BLOCK = 50  # epochs per batch: a quality meets its solution within the receiver's pairing window
@@ -164,7 +165,8 @@ def write_output(run: str | Path, out: str | Path, result: NavResult | None, *,
         own = meta.get("run_end", {"status": "error", "reason": "the source recording has no run_end"})
         status, reason = end if end is not None else (own.get("status", "error"), own.get("reason", ""))
         with RecordingWriter(out, epoch_ns=src.epoch_ns(), overwrite=overwrite) as rec:
-            transcribe(src, rec, drop_topics=DUT_TOPICS, drop_metadata=("run_start", "run_end", "dut_output"))
+            copy_records(src, rec, keep=lambda t, n, e: t not in DUT_TOPICS and not is_view(t, n, e),
+                         drop_metadata=("run_start", "dut_output"))
             rec.metadata("run_start", {**meta.get("run_start", {}), **(start_extra or {})})
             spec = CAN_TOPICS[CAN_RX]
             rec.columnar_topic(spec.topic, spec.schema, spec.dtype, description=spec.description, units=spec.units)
@@ -178,6 +180,7 @@ def write_output(run: str | Path, out: str | Path, result: NavResult | None, *,
             counts = {"solutions": recorder.solutions, "qualities": recorder.qualities, **recorder.tally.as_dict()}
             rec.metadata("dut_output", {"solutions": str(recorder.solutions), "qualities": str(recorder.qualities),
                                         "bad_frames": json.dumps(recorder.tally.as_dict())})
+            add_views(rec)  # the run's own views showed the DUT it replaces
             rec.close(status, reason)
     return counts
 

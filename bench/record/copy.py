@@ -1,4 +1,5 @@
-"""A copy of a recording, record for record, into a new writer (``bench views``).
+"""A copy of a recording, record for record, into a new writer (``bench views``, ``bench
+import-nav``).
 
 Every readable message is written again in file order with its log time, on a channel of
 the same topic, message encoding, metadata and schema (name, encoding and data as they
@@ -10,7 +11,7 @@ whatever is computed from the source's topics is computed the same from the copy
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 
 from bench.record.reader import RecordingReader
 from bench.record.writer import RecordingWriter
@@ -19,11 +20,16 @@ __all__ = ["copy_records"]
 
 
 def copy_records(
-    src: RecordingReader, dst: RecordingWriter, keep: Callable[[str, str, str], bool] | None = None
+    src: RecordingReader,
+    dst: RecordingWriter,
+    keep: Callable[[str, str, str], bool] | None = None,
+    *,
+    drop_metadata: Collection[str] = (),
 ) -> dict[str, str]:
     """Copy ``src`` into ``dst`` (see the module docstring); ``keep(topic, schema name,
-    schema encoding)`` says which channels to copy (all by default). Returns the source's
-    ``run_end`` metadata (empty if it has none) for the caller to close ``dst`` with."""
+    schema encoding)`` says which channels to copy (all by default), ``drop_metadata`` the
+    metadata records not to copy (``run_end`` never is). Returns the source's ``run_end``
+    metadata (empty if it has none) for the caller to close ``dst`` with."""
     idx = src._index
     copied: set[int] = set()
     for cid, ch in sorted(idx.channels.items()):
@@ -40,6 +46,8 @@ def copy_records(
     for name, values in idx.metadata:
         if name == "run_end":
             run_end = dict(values)
+            continue
+        if name in drop_metadata:
             continue
         dst.metadata(name, dict(values))
     for name, media, off, n in idx.attachments:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -20,19 +19,7 @@ from bench.errors import RecordingError
 from bench.record.layout import CHUNKS, COLUMNAR, TopicInfo, dtype_from_json
 from bench.record.scan import Damage, FileIndex, scan
 
-__all__ = ["RecordingReader", "TopicSchema"]
-
-
-@dataclass(frozen=True)
-class TopicSchema:
-    """A topic's channel and schema as a recording holds them."""
-
-    topic: str
-    message_encoding: str
-    schema_name: str
-    schema_encoding: str
-    schema_data: bytes
-    metadata: dict[str, str]
+__all__ = ["RecordingReader"]
 
 
 class RecordingReader:
@@ -171,18 +158,6 @@ class RecordingReader:
         """(topic, log time, payload bytes) of every readable message, in file order."""
         for _, ch, log_time, data in self._iter(topics):
             yield ch.topic, log_time, data
-
-    def topic_schemas(self) -> dict[str, TopicSchema]:
-        """Topic name -> its channel and schema as recorded (what a copy of the recording
-        declares, :mod:`bench.record.transcribe`); topics whose schema was lost are left out."""
-        out: dict[str, TopicSchema] = {}
-        idx = self._index
-        for _, ch in sorted(idx.channels.items()):
-            sch = idx.schemas.get(ch.schema_id)
-            if sch is not None:
-                out[ch.topic] = TopicSchema(ch.topic, ch.message_encoding, sch.name, sch.encoding, bytes(sch.data),
-                                            dict(ch.metadata))
-        return out
 
     def metadata(self) -> dict[str, dict[str, str]]:
         """Metadata records by name (the last of each name wins)."""

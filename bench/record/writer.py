@@ -23,7 +23,7 @@ from mcap.writer import CompressionType, Writer
 
 from bench import __version__
 from bench.errors import RecordingError
-from bench.record.layout import CHUNKS, COLUMNAR, PROFILE, dtype_from_json, dtype_to_json
+from bench.record.layout import CHUNKS, COLUMNAR, PROFILE, dtype_to_json
 from bench.record.lock import claim
 from bench.shield import shielded
 
@@ -129,27 +129,6 @@ class RecordingWriter:
         cid = self._channel(topic, CHUNKS, self._schemas[key], {})
         self._channels[topic] = (cid, None)
         self._seq[topic] = 0
-
-    def raw_topic(self, topic: str, message_encoding: str, schema_name: str, schema_encoding: str,
-                  schema_data: bytes, metadata: Mapping[str, str] | None = None) -> None:
-        """Declare a topic with its schema as another recording has it (a copy of a
-        recording, :mod:`bench.record.transcribe`); its messages go in with :meth:`write_raw`."""
-        if topic in self._channels:
-            return
-        key = f"{schema_encoding}:{schema_name}"
-        if key not in self._schemas:
-            self._schemas[key] = self._register(schema_name, schema_encoding, bytes(schema_data))
-        cid = self._channel(topic, message_encoding, self._schemas[key], dict(metadata or {}))
-        dtype = None
-        if message_encoding == COLUMNAR:
-            dtype = dtype_from_json(json.loads(schema_data)["dtype"])
-        self._channels[topic] = (cid, dtype)
-        self._seq[topic] = 0
-
-    def write_raw(self, topic: str, log_time_ns: int, data: bytes) -> None:
-        """Write one message of a :meth:`raw_topic` as it is, at log time ``log_time_ns``
-        (UTC ns, not bench time)."""
-        self._add(topic, int(log_time_ns), data)
 
     def encoded_topic(
         self,

@@ -19,6 +19,7 @@ import pytest
 from bench.acceptance.judge import score_recording
 from bench.cli import main
 from bench.record.mcap_io import RecordingReader
+from tests.record.views_util import decode_views
 
 HERE = Path(__file__).parent
 CASE = HERE / "reference_case.toml"
@@ -77,6 +78,16 @@ def test_an_imported_output_that_differs_scores_differently(reference_run, tmp_p
     assert moved.values["H-RMS"].value > live.values["H-RMS"].value + 5.0
     # without the STD file there is no NAV_QUALITY: the integrity check names it
     assert moved.values["INTEGRITY-quality"].value > 0
+    # the Foxglove views are derived again from the imported output, not kept from the run's DUT
+    live_views, moved_views = decode_views(reference_run), decode_views(out)
+    assert set(moved_views) == set(live_views)
+    lat_live = {t: m.latitude for t, m in live_views["/foxglove/dut/location"]}
+    lat_moved = {t: m.latitude for t, m in moved_views["/foxglove/dut/location"]}
+    both = sorted(set(lat_live) & set(lat_moved))  # the .nav has no validity flag: more epochs come back valid
+    assert len(both) >= 10
+    assert all(abs(lat_moved[t] - lat_live[t] - 10.0 / 111_000) < 1e-6 for t in both)
+    h_moved = [m.horizontal_m for _, m in moved_views["/foxglove/plot/errors"]]
+    assert max(h_moved) > 5.0
 
 
 def test_std_lines_in_any_order_pair_with_their_epochs(reference_run, tmp_path):
