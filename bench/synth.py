@@ -40,7 +40,7 @@ class SynthOptions:
     imu_grade: str | None = None
     truth_rate_hz: float = 100.0
     #: Rate of the Foxglove views written when the file is finished (10..50 Hz).
-    display_rate_hz: float = 20.0
+    display_rate_hz: float = 10.0
     write_ideal: bool = True
     window_s: float = 10.0
     #: Fault files (``[[fault]]`` tables) added to the scenario's own ``[[fault]]`` tables.

@@ -38,7 +38,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as d:
         with_views = _run(Path(d) / "a")
         real = finish.add_views
-        finish.add_views = lambda rec, rate_hz=20.0: 0
+        finish.add_views = lambda rec, rate_hz=10.0: 0
         try:
             without = _run(Path(d) / "b")
         finally:

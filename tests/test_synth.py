@@ -48,8 +48,8 @@ def test_synth_writes_truth_and_imu(tmp_path):
     t_log, data = next((t, d) for topic, t, d in r.iter_raw(["/foxglove/truth/location"]))
     fix = LocationFix.FromString(data)
     assert fix.latitude == pytest.approx(34.246) and t_log == 1772352000 * 10**9
-    assert topics["/foxglove/truth/location"].messages == 90 * 10 + 1  # 10 Hz
-    assert topics["/foxglove/plot/truth"].messages == 90 * 20 + 1  # 20 Hz
+    assert topics["/foxglove/truth/location"].messages == 90 * 5 + 1  # 5 Hz
+    assert topics["/foxglove/plot/truth"].messages == 90 * 10 + 1  # 10 Hz
 
 
 def test_same_seed_identical_payloads_other_seed_other_noise(tmp_path):

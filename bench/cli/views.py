@@ -24,8 +24,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                        "(map, poses, transforms, log, plots at the display rate, events) derived from it.")
     p.add_argument("recording", help="MCAP recording of a run")
     p.add_argument("-o", "--output", required=True, help="output MCAP file")
-    p.add_argument("--rate", type=float, default=20.0, help="display rate of the plot and map topics, Hz "
-                   "(10..50, default 20)")
+    p.add_argument("--rate", type=float, default=10.0, help="display rate of the plot and map topics, Hz "
+                   "(10..50, default 10)")
     p.add_argument("--force", action="store_true", help="overwrite an existing output file")
     p.set_defaults(handler=_run)
 

@@ -13,7 +13,7 @@ They are written as protobuf channels under ``/foxglove/`` marked ``derived: tru
   sample (the first valid DUT epoch when there is no truth); ``truth_flu`` and
   ``dut_flu`` are the body frames in the forward-left-up convention (x forward, y left,
   z up; the bench's body frame is right-forward-up, turned +90 deg about z);
-* display rate: ``rate_hz`` (20 Hz by default, 10..50 Hz) for the plots, half of it for
+* display rate: ``rate_hz`` (10 Hz by default, 10..50 Hz) for the plots, half of it for
   the map, poses and transforms (:data:`SPATIAL_SHARE`): each series keeps the first of
   its records in each display period (records as recorded, never interpolated);
 * the DUT's map and pose show its valid epochs only (NAV_SOLUTION bit 5, as scoring);
@@ -54,9 +54,9 @@ __all__ = [
     "derive_views",
 ]
 
-DEFAULT_RATE_HZ = 20.0
+DEFAULT_RATE_HZ = 10.0
 RATE_RANGE_HZ = (10.0, 50.0)
-#: the map, pose and transform topics at this share of the display rate (10 Hz of 20 Hz):
+#: the map, pose and transform topics at this share of the display rate (5 Hz of 10 Hz):
 #: a third of the view messages of a run each, where a map or a 3-D arrow needs no more
 SPATIAL_SHARE = 0.5
 WORLD_FRAME = "enu_start"
