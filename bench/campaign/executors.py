@@ -8,8 +8,10 @@
 * :func:`dask_executor` with an address (``tcp://host:8786``): an existing cluster
   (dask-ssh, dask-jobqueue, Kubernetes...), whose workers must see the campaign folder.
 
-Every worker gets ``env`` (``PYTHONPATH``...) in its environment. Workers ignore SIGINT:
-Ctrl-C is the campaign's, which stops them (:func:`stop_local`).
+Local workers (processes or a LocalCluster) get ``env`` (``PYTHONPATH``...) in their
+environment and ignore SIGINT: Ctrl-C is the campaign's, which stops them
+(:func:`stop_local`, or closing the LocalCluster). The workers of an existing cluster are
+left as they were set up.
 """
 
 from __future__ import annotations
@@ -32,7 +34,8 @@ LOOPBACK = "127.0.0.1"
 
 def _init_worker(env: Mapping[str, str]) -> None:
     os.environ.update(env)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    with contextlib.suppress(ValueError):  # only a process's main thread sets handlers
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 @contextlib.contextmanager
@@ -74,9 +77,9 @@ def dask_executor(scheduler: str, workers: int, env: Mapping[str, str] | None = 
                 dashboard_address=None, worker_dashboard_address=None, env=env, silence_logs=40,
             ))
             client = stack.enter_context(Client(cluster))
+            client.run(_init_worker, {})  # Ctrl-C is the campaign's, not the workers'
         else:
             client = stack.enter_context(Client(scheduler))
-        client.run(_init_worker, env)  # for workers of an existing cluster too
         ex = client.get_executor(pure=False)
         try:
             yield ex
