@@ -15,6 +15,7 @@ same runs give the same aggregate on any executor and any number of workers.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
@@ -94,23 +95,31 @@ def _criterion(cid: str, entries: list[tuple[Mapping[str, Any], Mapping[str, Any
     return out
 
 
+def _point(sweep: Any) -> str:
+    """``{key=value, ...}`` of a record's sweep point (as :func:`bench.campaign.sweep.point_label`)."""
+    if not sweep:
+        return ""
+    return "{" + ", ".join(f"{k}={json.dumps(v, sort_keys=True, ensure_ascii=False)}" for k, v in sweep) + "}"
+
+
 def aggregate(records: Iterable[Mapping[str, Any]], worst_n: int = 3, confidence: float = 0.95) -> dict[str, Any]:
-    """The aggregate of complete run records (see the module docstring), per case and variant."""
+    """The aggregate of complete run records (see the module docstring), per case, variant
+    and sweep point."""
     recs = sorted(records, key=lambda r: r["key"])
-    groups: dict[tuple[str, str], list[Mapping[str, Any]]] = {}
+    groups: dict[tuple[str, str, str], list[Mapping[str, Any]]] = {}
     for r in recs:
-        groups.setdefault((r["case_id"], r.get("variant") or ""), []).append(r)
+        groups.setdefault((r["case_id"], r.get("variant") or "", _point(r.get("sweep"))), []).append(r)
     cases: dict[str, Any] = {}
-    for (case_id, variant), runs in sorted(groups.items()):
+    for (case_id, variant, point), runs in sorted(groups.items()):
         per: dict[str, list[tuple[Mapping[str, Any], Mapping[str, Any]]]] = {}
         for r in runs:
             for cid, c in sorted(r.get("criteria", {}).items()):
                 per.setdefault(cid, []).append((r, c))
         run_verdicts = [r["verdict"] for r in runs]
         passed = sum(v in ("PASS", "MARGINAL") for v in run_verdicts)
-        label = case_id + (f"[{variant}]" if variant else "")
+        label = case_id + (f"[{variant}]" if variant else "") + point
         cases[label] = {
-            "case_id": case_id, "variant": variant or None, "runs": len(runs),
+            "case_id": case_id, "variant": variant or None, "sweep": runs[0].get("sweep") or [], "runs": len(runs),
             "seeds": sorted(r["seed"] for r in runs),
             "verdicts": {v: run_verdicts.count(v) for v in sorted(set(run_verdicts))},
             "pass_rate": passed / len(runs),

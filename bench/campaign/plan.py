@@ -3,20 +3,23 @@
 A run's key is the SHA-256 of what decides its outcome: the bytes of the case file and
 of every file the case attaches to its recordings (scenario, driver, vehicle, fault and
 map files: :func:`bench.acceptance.runner.case_attachments`), the variant, the seed, the
-clock mode and the bench version. A campaign folder keeps one record per key, so a run
-whose inputs did not change is never run twice, and a changed file runs again.
+clock mode, the sweep point (:mod:`bench.campaign.sweep`) and the bench version. A
+campaign folder keeps one record per key, so a run whose inputs did not change is never
+run twice, and a changed file runs again.
 """
 
 from __future__ import annotations
 
 import hashlib
+import json
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-from bench.acceptance.case import TestCase, load_case
+from bench.acceptance.case import TestCase
 from bench.acceptance.runner import case_attachments
 from bench.acceptance.suite import SuiteOptions, collect_cases, prepare_case
+from bench.campaign.sweep import SweepPoint, case_at, point_label, sweep_points
 
 __all__ = ["PlannedRun", "run_key", "plan_campaign"]
 
@@ -31,15 +34,16 @@ class PlannedRun:
     variant: str | None
     seed: int
     clock: str | None = None
+    point: SweepPoint = ()
 
     @property
     def label(self) -> str:
-        """``CASE[variant] seed N``."""
+        """``CASE[variant]{sweep point} seed N``."""
         v = f"[{self.variant}]" if self.variant else ""
-        return f"{self.case_id}{v} seed {self.seed}"
+        return f"{self.case_id}{v}{point_label(self.point)} seed {self.seed}"
 
 
-def run_key(case: TestCase, variant: str | None, seed: int, clock: str | None = None) -> str:
+def run_key(case: TestCase, variant: str | None, seed: int, clock: str | None = None, point: SweepPoint = ()) -> str:
     """The content hash of one run (hex SHA-256; see the module docstring)."""
     from bench import __version__
 
@@ -55,6 +59,8 @@ def run_key(case: TestCase, variant: str | None, seed: int, clock: str | None = 
     part("variant", (variant or "").encode())
     part("seed", str(int(seed)).encode())
     part("clock", (clock or case.clock.mode).encode())
+    if point:
+        part("sweep", json.dumps([list(kv) for kv in point], sort_keys=True).encode())
     return h.hexdigest()
 
 
@@ -70,10 +76,11 @@ def plan_campaign(
     options = SuiteOptions(Path("."), seeds, runs, clock)
     out: dict[str, PlannedRun] = {}
     for path in collect_cases(paths):
-        case = prepare_case(load_case(path), options)
-        for v in case.variants():
-            cv = case.for_variant(v)
-            for seed in cv.run.seeds:
-                key = run_key(cv, v, seed, clock)
-                out[key] = PlannedRun(key, str(Path(path).resolve()), case.id, v, int(seed), clock)
+        for point in sweep_points(path):
+            case = prepare_case(case_at(path, point), options)
+            for v in case.variants():
+                cv = case.for_variant(v)
+                for seed in cv.run.seeds:
+                    key = run_key(cv, v, seed, clock, point)
+                    out[key] = PlannedRun(key, str(Path(path).resolve()), case.id, v, int(seed), clock, point)
     return [out[k] for k in sorted(out)]

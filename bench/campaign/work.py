@@ -64,10 +64,10 @@ def write_atomic(path: Path, data: dict[str, Any]) -> None:
 
 def execute_run(run: PlannedRun, out_dir: str) -> dict[str, Any]:
     """Run, judge and record ``run`` under ``out_dir`` (see the module docstring)."""
-    from bench.acceptance.case import load_case
     from bench.acceptance.judge import score_recording
     from bench.acceptance.runner import recording_name, runner_for
     from bench.acceptance.verdict import Verdict
+    from bench.campaign.sweep import case_at
     from bench.crashlog import one_line
     from bench.record.lock import clear_outputs
 
@@ -76,10 +76,11 @@ def execute_run(run: PlannedRun, out_dir: str) -> dict[str, Any]:
     folder.mkdir(parents=True, exist_ok=True)
     record: dict[str, Any] = {
         "version": RECORD_VERSION, "key": run.key, "case_id": run.case_id, "case_file": run.case_file,
-        "variant": run.variant, "seed": run.seed, "criteria": {}, "bench_issues": [], "dut_issues": [],
+        "variant": run.variant, "seed": run.seed,
+        "sweep": [list(kv) for kv in run.point], "criteria": {}, "bench_issues": [], "dut_issues": [],
     }
     try:
-        case = load_case(run.case_file)
+        case = case_at(run.case_file, run.point)
         if run.clock:
             case = case.with_clock(run.clock)
         cv = case.for_variant(run.variant).with_seeds((run.seed,))
