@@ -22,10 +22,15 @@ from pathlib import Path
 from typing import Any
 
 from bench.campaign.plan import PlannedRun
+from bench.errors import BenchError
 
-__all__ = ["execute_run", "record_path", "load_record", "write_atomic", "RECORD_VERSION"]
+__all__ = ["execute_run", "record_path", "load_record", "write_atomic", "RunInterruptedError", "RECORD_VERSION"]
 
 RECORD_VERSION = 1
+
+
+class RunInterruptedError(BenchError):
+    """The run's recording ended ``interrupted``: no record is written (it runs again)."""
 
 
 def record_path(out_dir: str | Path, key: str) -> Path:
@@ -64,12 +69,13 @@ def write_atomic(path: Path, data: dict[str, Any]) -> None:
 
 def execute_run(run: PlannedRun, out_dir: str) -> dict[str, Any]:
     """Run, judge and record ``run`` under ``out_dir`` (see the module docstring)."""
-    from bench.acceptance.judge import score_recording
+    from bench.acceptance.judge import score_run
     from bench.acceptance.runner import recording_name, runner_for
     from bench.acceptance.verdict import Verdict
     from bench.campaign.sweep import case_at
     from bench.crashlog import one_line
     from bench.record.lock import clear_outputs
+    from bench.scoring.data import load_run
 
     base = Path(out_dir)
     folder = base / "recordings" / run.case_id / run.key[:16]
@@ -89,13 +95,15 @@ def execute_run(run: PlannedRun, out_dir: str) -> dict[str, Any]:
         record["recording"] = str(target.relative_to(base))
         path = runner_for(cv).run(cv, run.seed, folder)
         record["recording"] = str(Path(path).resolve().relative_to(base.resolve()))
-        _, result = score_recording(path, case)
+        data = load_run(path)
+        interrupted = data.run_end.get("status") == "interrupted"
+        result = score_run(data, case)
         worse = {c.id: "lower" if c.limit.comparator == "at_least" else "higher" for c in case.criteria}
     except Exception as exc:  # a run that could not be executed or judged: ERROR, recorded
         record.update(verdict=Verdict.ERROR.value, bench_issues=[f"{type(exc).__name__}: {one_line(exc)}"])
     else:
-        if result.overview.get("status") == "interrupted" or any("interrupted" in i for i in result.bench_issues):
-            raise KeyboardInterrupt(f"{run.label} was interrupted")  # no record: it runs again
+        if interrupted:
+            raise RunInterruptedError(f"{run.label} was interrupted")  # no record: it runs again
         record.update(
             verdict=result.verdict.value,
             bench_issues=list(result.bench_issues),
