@@ -84,33 +84,38 @@ def run_campaign(
     if progress:
         progress(state)
     env = {k: v for k, v in os.environ.items() if k == "PYTHONPATH"} | options.env
-    if todo:
-        with open_executor(options.scheduler, max(1, options.workers), env) as ex:
-            futures = [ex.submit(execute_run, run, str(out)) for run in todo]
-            by_future = dict(zip(map(id, futures), todo, strict=True))
-            for fut in completed(futures):
-                run = by_future[id(fut)]
-                try:
-                    rec = fut.result()
-                except Exception as exc:  # a worker died or could not write: the run stays missing
-                    state.lost.append(f"{run.label}: {type(exc).__name__}: {exc}")
-                else:
-                    records[run.key] = rec
-                    state.done += 1
-                    state.executed += 1
-                    state.failing += _failing(rec)
-                    state.last = rec
-                if progress:
-                    progress(state)
-    missing = [r.key for r in plan if r.key not in records]
-    result = {
-        "campaign": {"paths": [str(p) for p in options.paths], "planned": len(plan), "complete": not missing,
-                     "missing": missing},
-        "aggregate": aggregate(records.values()),
-        "invocation": {"executed": state.executed, "reused": len(plan) - len(todo), "lost": state.lost,
-                       "workers": options.workers, "scheduler": options.scheduler or "processes"},
-    }
-    write_atomic(out / "campaign.json", result)
+    try:
+        if todo:
+            with open_executor(options.scheduler, max(1, options.workers), env) as ex:
+                futures = [ex.submit(execute_run, run, str(out)) for run in todo]
+                by_future = dict(zip(map(id, futures), todo, strict=True))
+                for fut in completed(futures):
+                    run = by_future[id(fut)]
+                    try:
+                        rec = fut.result()
+                    except Exception as exc:  # a worker died or could not write: the run stays missing
+                        state.lost.append(f"{run.label}: {type(exc).__name__}: {exc}")
+                    else:
+                        records[run.key] = rec
+                        state.done += 1
+                        state.executed += 1
+                        state.failing += _failing(rec)
+                        state.last = rec
+                    if progress:
+                        progress(state)
+    finally:  # also when interrupted: every run recorded so far (a worker may have finished one unseen)
+        for run in plan:
+            if run.key not in records and (rec := load_record(out, run.key)) is not None:
+                records[run.key] = rec
+        missing = [r.key for r in plan if r.key not in records]
+        result = {
+            "campaign": {"paths": [str(p) for p in options.paths], "planned": len(plan), "complete": not missing,
+                         "missing": missing},
+            "aggregate": aggregate(records.values()),
+            "invocation": {"executed": state.executed, "reused": len(plan) - len(todo), "lost": state.lost,
+                           "workers": options.workers, "scheduler": options.scheduler or "processes"},
+        }
+        write_atomic(out / "campaign.json", result)
     return result
 
 

@@ -53,14 +53,16 @@ def local_executor(workers: int, env: Mapping[str, str] | None = None) -> Iterat
 
 
 def stop_local(ex: Executor) -> None:
-    """Cancel what has not started and end the worker processes of a local executor."""
-    ex.shutdown(wait=False, cancel_futures=True)
-    for p in list((getattr(ex, "_processes", None) or {}).values()):
+    """End the worker processes of a local executor and cancel what has not started
+    (the processes are taken before shutdown, which forgets them)."""
+    procs = list((getattr(ex, "_processes", None) or {}).values())
+    for p in procs:
         with contextlib.suppress(Exception):
             p.terminate()
-    for p in list((getattr(ex, "_processes", None) or {}).values()):
+    for p in procs:
         with contextlib.suppress(Exception):
             p.join(5)
+    ex.shutdown(wait=False, cancel_futures=True)
 
 
 @contextlib.contextmanager
