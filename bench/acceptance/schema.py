@@ -46,6 +46,7 @@ TOP_KEYS = (
     "run",
     "scoring",
     "criterion",
+    "sweep",  # parameter sweeps of `bench campaign` (bench.campaign.sweep); one case runs as written
 )
 SENSORS = ("imu", "doppler", "odometer", "bds", "driver")
 COMMANDS = {"grid": 1, "geographic": 2, "reset": 3}
@@ -104,6 +105,7 @@ def build_case(
         raise ConfigError("expected at least one [[criterion]] table", file=file, key="criterion")
     criteria, case_requirements = with_integrity(criteria, scoring, tuple(requirements), file)
     top.raw("criterion")
+    top.raw("sweep")  # checked and expanded by bench campaign (bench.campaign.sweep)
     top.finish()
     return TestCase(
         id=str(case_id),

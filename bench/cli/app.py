@@ -51,6 +51,7 @@ EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_ERROR = 0, 1, 2, 3
 #: Modules under bench.cli that each provide ``register(subparsers)``.
 SUBCOMMANDS = [
     "synth", "run", "replay", "info", "imu", "score", "accept", "report", "compare", "fmu", "exchange", "views",
+    "campaign",
 ]
 
 

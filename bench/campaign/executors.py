@@ -1,0 +1,114 @@
+"""Where campaign runs execute: a ``concurrent.futures`` executor (the one module using Dask).
+
+* :func:`local_executor`: a :class:`~concurrent.futures.ProcessPoolExecutor` of ``workers``
+  processes (the default);
+* :func:`dask_executor` with ``"local"``: a :class:`distributed.LocalCluster` on this
+  machine, ``workers`` processes of one thread each, its scheduler and workers listening
+  on 127.0.0.1 only and no dashboard;
+* :func:`dask_executor` with an address (``tcp://host:8786``): an existing cluster
+  (dask-ssh, dask-jobqueue, Kubernetes...), whose workers must see the campaign folder.
+
+Local workers (processes or a LocalCluster) get ``env`` (``PYTHONPATH``...) in their
+environment and ignore SIGINT: Ctrl-C is the campaign's, which stops them
+(:func:`stop_local`, or closing the LocalCluster). The workers of an existing cluster are
+left as they were set up.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+import signal
+from collections.abc import Iterator, Mapping
+from concurrent.futures import Executor, Future, ProcessPoolExecutor
+from concurrent.futures import as_completed as cf_completed
+from typing import Any
+
+__all__ = [
+    "local_executor", "dask_executor", "open_executor", "stop_local", "scheduler_addresses", "completed", "LOOPBACK",
+]
+
+LOOPBACK = "127.0.0.1"
+
+
+def _init_worker(env: Mapping[str, str]) -> None:
+    os.environ.update(env)
+    with contextlib.suppress(ValueError):  # only a process's main thread sets handlers
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+@contextlib.contextmanager
+def local_executor(workers: int, env: Mapping[str, str] | None = None) -> Iterator[Executor]:
+    """Local worker processes (spawned: no state inherited from the campaign's process)."""
+    ex = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                             initializer=_init_worker, initargs=(dict(env or {}),))
+    try:
+        yield ex
+    except BaseException:
+        stop_local(ex)
+        raise
+    else:
+        ex.shutdown(wait=True)
+
+
+def stop_local(ex: Executor) -> None:
+    """End the worker processes of a local executor and cancel what has not started
+    (the processes are taken before shutdown, which forgets them)."""
+    procs = list((getattr(ex, "_processes", None) or {}).values())
+    for p in procs:
+        with contextlib.suppress(Exception):
+            p.terminate()
+    for p in procs:
+        with contextlib.suppress(Exception):
+            p.join(5)
+    ex.shutdown(wait=False, cancel_futures=True)
+
+
+@contextlib.contextmanager
+def dask_executor(scheduler: str, workers: int, env: Mapping[str, str] | None = None) -> Iterator[Executor]:
+    """A Dask cluster as an executor: ``"local"`` starts a loopback-only LocalCluster of
+    ``workers`` processes (1 thread each); otherwise ``scheduler`` is an existing one's address."""
+    from distributed import Client, LocalCluster
+
+    env = dict(env or {})
+    with contextlib.ExitStack() as stack:
+        if scheduler == "local":
+            cluster = stack.enter_context(LocalCluster(
+                n_workers=workers, threads_per_worker=1, processes=True, host=LOOPBACK,
+                dashboard_address=None, worker_dashboard_address=None, env=env, silence_logs=40,
+            ))
+            client = stack.enter_context(Client(cluster))
+            client.run(_init_worker, {})  # Ctrl-C is the campaign's, not the workers'
+        else:
+            client = stack.enter_context(Client(scheduler))
+        ex = client.get_executor(pure=False)
+        try:
+            yield ex
+        finally:
+            ex.shutdown(wait=False)
+
+
+def scheduler_addresses(ex: Executor) -> list[str]:
+    """The scheduler's and the workers' addresses behind a Dask executor (for checks)."""
+    client = ex._client  # type: ignore[attr-defined]
+    info = client.scheduler_info()
+    return [client.scheduler.address, *info.get("workers", {}).keys()]
+
+
+@contextlib.contextmanager
+def open_executor(scheduler: str | None, workers: int, env: Mapping[str, str] | None = None) -> Iterator[Executor]:
+    """Local processes when ``scheduler`` is None, else :func:`dask_executor`."""
+    cm = local_executor(workers, env) if scheduler is None else dask_executor(scheduler, workers, env)
+    with cm as ex:
+        yield ex
+
+
+def completed(futures: list[Any]) -> Iterator[Any]:
+    """The futures of :func:`open_executor` as they finish (Dask's or concurrent.futures')."""
+    if futures and not isinstance(futures[0], Future):
+        from distributed import as_completed as dask_completed
+
+        yield from dask_completed(futures)
+        return
+    yield from cf_completed(futures)

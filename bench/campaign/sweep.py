@@ -1,0 +1,85 @@
+"""Parameter sweeps declared in a case: ``[[sweep]]`` tables, expanded by ``bench campaign``.
+
+::
+
+    [[sweep]]
+    key = "dut.synthetic.latency"      # a dotted path into the case's tables
+    values = ["2 ms", "4 ms", "8 ms"]  # each replaces the value at key, as written in TOML
+
+Several ``[[sweep]]`` tables sweep their cartesian product. Each point is the case with
+those values set (then checked as any case is), run for every variant and seed; its runs
+have their own keys and their own group in the aggregate (``CASE{key=value}``).
+``bench accept`` ignores ``[[sweep]]``: it runs the case as written.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from bench.acceptance.case import TestCase, load_case
+from bench.errors import ConfigError
+
+__all__ = ["SweepPoint", "sweep_points", "case_at", "point_label"]
+
+#: One point: (dotted key, value) pairs in declaration order (hashable, picklable).
+SweepPoint = tuple[tuple[str, Any], ...]
+
+
+def _doc(path: Path) -> dict[str, Any]:
+    try:
+        return tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"not valid TOML: {exc}", file=str(path)) from None
+
+
+def sweep_points(path: str | Path) -> list[SweepPoint]:
+    """The points of the case file's sweeps (``[()]`` without ``[[sweep]]``)."""
+    sweeps = _doc(Path(path)).get("sweep", [])
+    if not isinstance(sweeps, list):
+        raise ConfigError("expected [[sweep]] tables", file=str(path), key="sweep")
+    axes: list[list[tuple[str, Any]]] = []
+    for i, s in enumerate(sweeps):
+        where = f"sweep[{i}]"
+        if not isinstance(s, dict) or set(s) != {"key", "values"}:
+            raise ConfigError("expected exactly 'key' and 'values'", file=str(path), key=where)
+        key, values = s["key"], s["values"]
+        if not isinstance(key, str) or not key or any(not k for k in key.split(".")):
+            raise ConfigError(f"expected a dotted key such as 'dut.config.rate', found {key!r}", file=str(path),
+                              key=f"{where}.key")
+        if not isinstance(values, list) or not values:
+            raise ConfigError("expected a non-empty array of values", file=str(path), key=f"{where}.values")
+        axes.append([(key, v) for v in values])
+    return [tuple(p) for p in itertools.product(*axes)]
+
+
+def point_label(point: SweepPoint) -> str:
+    """``{key=value, ...}`` (empty for no sweep)."""
+    if not point:
+        return ""
+    return "{" + ", ".join(f"{k}={json.dumps(v, sort_keys=True, ensure_ascii=False)}" for k, v in point) + "}"
+
+
+def case_at(path: str | Path, point: SweepPoint) -> TestCase:
+    """The case of ``path`` at the sweep ``point``, checked as a case file is."""
+    from bench.acceptance.schema import build_case
+
+    p = Path(path)
+    if not point:
+        return load_case(p)
+    doc = _doc(p)
+    doc.pop("sweep", None)
+    for key, value in point:
+        *parents, last = key.split(".")
+        table = doc
+        for name in parents:
+            nxt = table.setdefault(name, {})
+            if not isinstance(nxt, dict):
+                raise ConfigError(f"cannot sweep {key!r}: {name!r} is not a table", file=str(p), key="sweep")
+            table = nxt
+        table[last] = value
+    text = p.read_text(encoding="utf-8") + f"\n# bench campaign sweep point: {point_label(point)}\n"
+    return build_case(doc, text=text, file=str(p), base=p.resolve().parent, check_files=True, path=p)

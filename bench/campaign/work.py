@@ -1,0 +1,117 @@
+"""One campaign run, executed where a worker is: run, judge, write the run's record.
+
+:func:`execute_run` is what an executor calls. It loads the case from its file (a
+:class:`~bench.campaign.plan.PlannedRun` is small and picklable), runs it through the
+case's runner into ``<dir>/recordings/<case id>/<key[:16]>/``, judges the recording as
+``bench score`` would, and writes ``<dir>/runs/<key>.json`` atomically (a temporary file
+then :func:`os.replace`) only once the recording is finished. It returns that record, a
+small dict of numbers and strings, never arrays.
+
+A run interrupted (Ctrl-C, SIGTERM, a killed worker) writes no record, so the next
+campaign runs it again; a run that crashed or could not be executed is recorded ERROR
+with its reason (delete its record to try again).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from bench.campaign.plan import PlannedRun
+from bench.errors import BenchError
+
+__all__ = ["execute_run", "record_path", "load_record", "write_atomic", "RunInterruptedError", "RECORD_VERSION"]
+
+RECORD_VERSION = 1
+
+
+class RunInterruptedError(BenchError):
+    """The run's recording ended ``interrupted``: no record is written (it runs again)."""
+
+
+def record_path(out_dir: str | Path, key: str) -> Path:
+    """Where the record of the run ``key`` is kept."""
+    return Path(out_dir) / "runs" / f"{key}.json"
+
+
+def load_record(out_dir: str | Path, key: str) -> dict[str, Any] | None:
+    """The complete record of run ``key``, or None (missing, unreadable or incomplete)."""
+    try:
+        rec = json.loads(record_path(out_dir, key).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(rec, dict) or rec.get("key") != key or rec.get("complete") is not True:
+        return None
+    return rec
+
+
+def _number(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else (None if math.isnan(x) else float(x))
+
+
+def write_atomic(path: Path, data: dict[str, Any]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            json.dump(data, f, indent=1, sort_keys=True, allow_nan=True)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def execute_run(run: PlannedRun, out_dir: str) -> dict[str, Any]:
+    """Run, judge and record ``run`` under ``out_dir`` (see the module docstring)."""
+    from bench.acceptance.judge import score_run
+    from bench.acceptance.runner import recording_name, runner_for
+    from bench.acceptance.verdict import Verdict
+    from bench.campaign.sweep import case_at
+    from bench.crashlog import one_line
+    from bench.record.lock import clear_outputs
+    from bench.scoring.data import load_run
+
+    base = Path(out_dir)
+    folder = base / "recordings" / run.case_id / run.key[:16]
+    folder.mkdir(parents=True, exist_ok=True)
+    record: dict[str, Any] = {
+        "version": RECORD_VERSION, "key": run.key, "case_id": run.case_id, "case_file": run.case_file,
+        "variant": run.variant, "seed": run.seed,
+        "sweep": [list(kv) for kv in run.point], "criteria": {}, "bench_issues": [], "dut_issues": [],
+    }
+    try:
+        case = case_at(run.case_file, run.point)
+        if run.clock:
+            case = case.with_clock(run.clock)
+        cv = case.for_variant(run.variant).with_seeds((run.seed,))
+        target = folder / recording_name(cv, run.seed)
+        clear_outputs([target], force=True)  # the partial recording of an interrupted run
+        record["recording"] = str(target.relative_to(base))
+        path = runner_for(cv).run(cv, run.seed, folder)
+        record["recording"] = str(Path(path).resolve().relative_to(base.resolve()))
+        data = load_run(path)
+        interrupted = data.run_end.get("status") == "interrupted"
+        result = score_run(data, case)
+        worse = {c.id: "lower" if c.limit.comparator == "at_least" else "higher" for c in case.criteria}
+    except Exception as exc:  # a run that could not be executed or judged: ERROR, recorded
+        record.update(verdict=Verdict.ERROR.value, bench_issues=[f"{type(exc).__name__}: {one_line(exc)}"])
+    else:
+        if interrupted:
+            raise RunInterruptedError(f"{run.label} was interrupted")  # no record: it runs again
+        record.update(
+            verdict=result.verdict.value,
+            bench_issues=list(result.bench_issues),
+            dut_issues=list(result.dut_issues),
+            criteria={cid: {"value": _number(v.value), "verdict": v.verdict.value, "reason": v.reason,
+                            "worse": worse.get(cid, "higher")}
+                      for cid, v in sorted(result.values.items())},
+        )
+    record["complete"] = True
+    write_atomic(record_path(base, run.key), record)
+    return record

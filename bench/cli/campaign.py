@@ -1,0 +1,82 @@
+"""``bench campaign CASES... --runs N [--workers K] [--scheduler ADDRESS|local] -o DIR``.
+
+Runs every case x variant x seed in parallel (local processes by default, a Dask
+LocalCluster on loopback with ``--scheduler local``, or an existing Dask cluster at
+ADDRESS), records each run under DIR and aggregates them into ``DIR/campaign.json``
+(:mod:`bench.campaign`; docs/campaigns.md). Starting it again runs only what is missing.
+
+Exit codes: 0 every run PASS or MARGINAL; 1 a run FAILed; 2 a malformed case or bad
+usage; 3 a run was ERROR or could not be run (the campaign is then incomplete).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from bench.cli.app import EXIT_ERROR, EXIT_FAIL, EXIT_OK, EXIT_USAGE
+from bench.textsafe import for_terminal
+
+__all__ = ["register"]
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the ``campaign`` subcommand."""
+    p = sub.add_parser(
+        "campaign",
+        help="seeded Monte Carlo campaign of test cases, in parallel, resumable",
+        description="Run every case x variant x seed in parallel, record each run under DIR and aggregate "
+        "pass rates and percentiles into DIR/campaign.json; a second start runs only what is missing.",
+    )
+    p.add_argument("paths", nargs="+", help="case files or folders")
+    p.add_argument("-o", "--out", required=True, help="campaign folder (records, recordings, campaign.json)")
+    p.add_argument("--runs", type=int, help="Monte Carlo runs per case and variant (seeds from the case's first)")
+    p.add_argument("--seed", type=int, action="append", help="run only this seed (repeatable)")
+    p.add_argument("--clock", choices=("lockstep", "realtime"), help="override the cases' clock mode")
+    p.add_argument("--workers", type=int, default=1, help="parallel worker processes (default 1)")
+    p.add_argument("--scheduler", help="'local' for a Dask LocalCluster on 127.0.0.1, or a Dask scheduler address")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    p.set_defaults(handler=_run)
+
+
+def _progress(quiet: bool):
+    def show(state) -> None:
+        if quiet:
+            return
+        last = state.last
+        if last is not None:
+            label = f"{last['case_id']}{'[' + last['variant'] + ']' if last.get('variant') else ''} seed {last['seed']}"
+            print(for_terminal(f"  {label}: {last.get('verdict')}"), file=sys.stderr)
+            state.last = None
+        eta = state.eta_s
+        eta_text = f", ETA {eta:.0f} s" if eta is not None else ""
+        lost = f", {len(state.lost)} lost" if state.lost else ""
+        print(f"campaign: {state.done}/{state.total} runs done, {state.failing} failing{lost}{eta_text}",
+              file=sys.stderr)
+
+    return show
+
+
+def _run(args: argparse.Namespace) -> int:
+    from bench.campaign.campaign import CampaignOptions, run_campaign
+
+    if (args.runs is not None and args.runs < 1) or args.workers < 1:
+        print("bench campaign: --runs and --workers must be at least 1", file=sys.stderr)
+        return EXIT_USAGE
+    options = CampaignOptions(list(args.paths), Path(args.out), args.runs, tuple(args.seed) if args.seed else None,
+                              args.clock, args.workers, args.scheduler)
+    result = run_campaign(options, _progress(args.quiet))
+    agg = result["aggregate"]
+    for label, case in agg["cases"].items():
+        lo, hi = case["pass_rate_interval"]
+        print(f"{label}: {case['runs']} run(s), pass rate {case['pass_rate']:.3f} [{lo:.3f}, {hi:.3f}]")
+    inv = result["invocation"]
+    print(f"{agg['runs']}/{result['campaign']['planned']} run(s) recorded ({inv['executed']} run now, "
+          f"{inv['reused']} reused); {Path(args.out) / 'campaign.json'}")
+    for note in inv["lost"]:
+        print(for_terminal(f"bench campaign: not run: {note}"), file=sys.stderr)
+    verdicts = {v for c in agg["cases"].values() for v in c["verdicts"]}
+    if not result["campaign"]["complete"] or "ERROR" in verdicts:
+        return EXIT_ERROR
+    return EXIT_FAIL if "FAIL" in verdicts else EXIT_OK

@@ -1,0 +1,44 @@
+"""Run records: written only for a finished run; an interrupted run leaves none and is lost."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from bench.campaign.campaign import CampaignOptions, run_campaign
+from bench.campaign.plan import plan_campaign
+from bench.campaign.work import execute_run, load_record, record_path
+
+HERE = Path(__file__).parent
+
+
+def _copy(tmp_path: Path, status: str | None = None) -> Path:
+    (tmp_path / "drive.toml").write_bytes((HERE / "drive.toml").read_bytes())
+    text = (HERE / "case.toml").read_text()
+    if status:
+        text = text.replace("[dut.synthetic]\n", f'[dut.synthetic]\nbench_status = "{status}"\n', 1)
+    case = tmp_path / "case.toml"
+    case.write_text(text)
+    return case
+
+
+def test_a_record_is_small_and_complete(tmp_path):
+    (run,) = plan_campaign([_copy(tmp_path)], runs=1)
+    out = tmp_path / "out"
+    rec = execute_run(run, str(out))
+    assert load_record(out, run.key) == rec
+    assert rec["complete"] and rec["key"] == run.key and rec["seed"] == run.seed
+    assert (out / rec["recording"]).is_file()
+    assert set(rec["criteria"]["POS"]) == {"value", "verdict", "reason", "worse"}
+    assert not list((out / "runs").glob("*.tmp"))
+    record_path(out, run.key).write_text(json.dumps({**rec, "complete": False}))
+    assert load_record(out, run.key) is None  # an incomplete record runs again
+
+
+def test_an_interrupted_run_writes_no_record_and_the_campaign_is_incomplete(tmp_path):
+    case = _copy(tmp_path, "interrupted")
+    out = tmp_path / "out"
+    result = run_campaign(CampaignOptions([str(case)], out, runs=2, workers=1))
+    assert result["invocation"]["executed"] == 0 and len(result["invocation"]["lost"]) == 2
+    assert not result["campaign"]["complete"] and len(result["campaign"]["missing"]) == 2
+    assert not list((out / "runs").glob("*.json")) if (out / "runs").exists() else True
