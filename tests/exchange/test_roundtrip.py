@@ -102,3 +102,25 @@ def test_std_lines_in_any_order_pair_with_their_epochs(reference_run, tmp_path):
     _, back = score_recording(out)
     assert back.values["INTEGRITY-quality"].value == 0
     assert back.values["NEES-POS"].value == pytest.approx(live.values["NEES-POS"].value, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("mutate", "criterion"),
+    [
+        (lambda lines: lines[::-1], "INTEGRITY-order"),  # epochs in reverse order
+        (lambda lines: [ln for ln in lines for _ in (0, 1)], "INTEGRITY-repeated"),  # every epoch twice
+        (lambda lines: lines[: len(lines) // 3], "INTEGRITY-missing"),  # output stops a third of the way
+    ],
+)
+def test_an_imported_output_that_misbehaves_fails(reference_run, tmp_path, mutate, criterion):
+    """A result the DUT wrote out of order, twice over or cut short is judged FAIL, never PASS."""
+    folder = tmp_path / "x"
+    assert main(["export", str(reference_run), "-o", str(folder), "--dut"]) == 0
+    lines = [ln for ln in (folder / "dut.nav").read_text().splitlines() if ln.strip()]
+    (folder / "bad.nav").write_text("\n".join(mutate(lines)) + "\n")
+    out = tmp_path / "bad.mcap"
+    assert main(["import-nav", str(folder / "bad.nav"), "--run", str(reference_run), "--std",
+                 str(folder / "dut_std.txt"), "-o", str(out)]) == 0
+    _, judged = score_recording(out)
+    assert judged.values[criterion].verdict.name == "FAIL", judged.values[criterion]
+    assert judged.verdict.name == "FAIL"
