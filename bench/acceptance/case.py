@@ -239,9 +239,11 @@ def parse_case(
 ) -> TestCase:
     """Check and convert the text of a test case (``file`` names it in errors)."""
     from bench.acceptance.schema import build_case
+    from bench.acceptance.sweep_point import apply_sweep_point
 
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"not valid TOML: {exc}", file=file) from None
+    doc = apply_sweep_point(doc, file=file)  # a swept case's values (bench campaign)
     return build_case(doc, text=text, file=file, base=base, check_files=check_files, path=path)

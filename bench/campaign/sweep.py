@@ -8,8 +8,11 @@
 
 Several ``[[sweep]]`` tables sweep their cartesian product. Each point is the case with
 those values set (then checked as any case is), run for every variant and seed; its runs
-have their own keys and their own group in the aggregate (``CASE{key=value}``).
-``bench accept`` ignores ``[[sweep]]``: it runs the case as written.
+have their own keys and their own group in the aggregate (``CASE{key=value}``). A key
+reaches into arrays of tables by index (``criterion[0].at_most``) and into a sensor named
+by its set (``sensors.doppler.scale_factor_markov``); the case is the file's text with a
+``[sweep_point]`` table appended (:mod:`bench.acceptance.sweep_point`), which is what its
+recordings carry. ``bench accept`` ignores ``[[sweep]]``: it runs the case as written.
 """
 
 from __future__ import annotations
@@ -20,7 +23,8 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from bench.acceptance.case import TestCase, load_case
+from bench.acceptance.case import TestCase, load_case, parse_case
+from bench.acceptance.sweep_point import TABLE, check_key, sweep_point_toml
 from bench.errors import ConfigError
 
 __all__ = ["SweepPoint", "sweep_points", "case_at", "point_label"]
@@ -47,9 +51,7 @@ def sweep_points(path: str | Path) -> list[SweepPoint]:
         if not isinstance(s, dict) or set(s) != {"key", "values"}:
             raise ConfigError("expected exactly 'key' and 'values'", file=str(path), key=where)
         key, values = s["key"], s["values"]
-        if not isinstance(key, str) or not key or any(not k for k in key.split(".")):
-            raise ConfigError(f"expected a dotted key such as 'dut.config.rate', found {key!r}", file=str(path),
-                              key=f"{where}.key")
+        check_key(key, file=str(path), where=f"{where}.key")
         if not isinstance(values, list) or not values:
             raise ConfigError("expected a non-empty array of values", file=str(path), key=f"{where}.values")
         axes.append([(key, v) for v in values])
@@ -64,22 +66,14 @@ def point_label(point: SweepPoint) -> str:
 
 
 def case_at(path: str | Path, point: SweepPoint) -> TestCase:
-    """The case of ``path`` at the sweep ``point``, checked as a case file is."""
-    from bench.acceptance.schema import build_case
-
+    """The case of ``path`` at the sweep ``point``, checked as a case file is: its text with
+    a ``[sweep_point]`` table appended (:mod:`bench.acceptance.sweep_point`), so the case a
+    run's recording carries is the swept one."""
     p = Path(path)
     if not point:
         return load_case(p)
-    doc = _doc(p)
-    doc.pop("sweep", None)
-    for key, value in point:
-        *parents, last = key.split(".")
-        table = doc
-        for name in parents:
-            nxt = table.setdefault(name, {})
-            if not isinstance(nxt, dict):
-                raise ConfigError(f"cannot sweep {key!r}: {name!r} is not a table", file=str(p), key="sweep")
-            table = nxt
-        table[last] = value
-    text = p.read_text(encoding="utf-8") + f"\n# bench campaign sweep point: {point_label(point)}\n"
-    return build_case(doc, text=text, file=str(p), base=p.resolve().parent, check_files=True, path=p)
+    text = p.read_text(encoding="utf-8")
+    if TABLE in _doc(p):
+        raise ConfigError(f"a case with [[sweep]] cannot also set [{TABLE}]", file=str(p), key=TABLE)
+    return parse_case(text.rstrip("\n") + "\n" + sweep_point_toml(point, point_label(point)), file=str(p),
+                      base=p.resolve().parent, check_files=True, path=p)
