@@ -9,8 +9,10 @@ stopped, and ``aggregate`` is the same whichever executor ran it.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -18,9 +20,11 @@ from pathlib import Path
 from typing import Any
 
 from bench.campaign.aggregate import aggregate
-from bench.campaign.executors import completed, open_executor
+from bench.campaign.executors import completed, open_executor, pool_broken, worker_killed
+from bench.campaign.guard import death_record, guarded_run, marker_path, read_marker
 from bench.campaign.plan import PlannedRun, plan_campaign
-from bench.campaign.work import execute_run, load_record, write_atomic
+from bench.campaign.work import load_record, record_path, write_atomic
+from bench.crashlog import one_line
 
 __all__ = ["CampaignOptions", "CampaignProgress", "run_campaign", "read_campaign"]
 
@@ -58,10 +62,91 @@ class CampaignOptions:
     workers: int = 1
     scheduler: str | None = None  # None: local processes; "local": a Dask LocalCluster; else an address
     env: dict[str, str] = field(default_factory=dict)
+    retry_errors: bool = False  # run again the runs recorded ERROR
+    prune: bool = False  # delete records (and recordings) no run of the campaign has
 
 
 def _failing(rec: dict[str, Any]) -> bool:
     return rec.get("verdict") not in ("PASS", "MARGINAL", "N/A")
+
+
+def _stale(out: Path, plan: list[PlannedRun]) -> list[str]:
+    """Keys of the records under ``out/runs`` that no run of the plan has (a case edited, a
+    seed dropped, another bench version)."""
+    keys = {r.key for r in plan}
+    return sorted(p.stem for p in (out / "runs").glob("*.json") if p.stem not in keys)
+
+
+def _prune(out: Path, keys: list[str]) -> None:
+    """Delete stale records and their recordings' folders."""
+    for key in keys:
+        rec = record_path(out, key)
+        with contextlib.suppress(OSError, ValueError):
+            where = json.loads(rec.read_text(encoding="utf-8")).get("recording")
+            folder = (out / where).parent if where else None
+            if folder is not None and folder.resolve().is_relative_to((out / "recordings").resolve()):
+                shutil.rmtree(folder, ignore_errors=True)
+        rec.unlink(missing_ok=True)
+
+
+class _Execution:
+    """This invocation's runs on an executor, with the death of a worker told apart:
+    a broken local pool puts its unfinished runs back, those that were running are run
+    again one at a time, and one whose worker dies alone is recorded ERROR naming it."""
+
+    def __init__(self, options: CampaignOptions, out: Path, env: dict[str, str], state: CampaignProgress,
+                 records: dict[str, dict[str, Any]], progress: Callable[[CampaignProgress], None] | None):
+        self.options, self.out, self.env, self.state, self.records = options, out, env, state, records
+        self.progress = progress
+
+    def _done(self, run: PlannedRun, rec: dict[str, Any]) -> None:
+        self.records[run.key] = rec
+        self.state.done += 1
+        self.state.executed += 1
+        self.state.failing += _failing(rec)
+        self.state.last = rec
+        if self.progress:
+            self.progress(self.state)
+
+    def attempt(self, batch: list[PlannedRun], workers: int) -> list[PlannedRun]:
+        """Run ``batch``; the runs left unfinished by a broken pool are returned."""
+        unfinished: list[PlannedRun] = []
+        with open_executor(self.options.scheduler, workers, self.env) as ex:
+            futures = [ex.submit(guarded_run, run, str(self.out)) for run in batch]
+            by_future = dict(zip(map(id, futures), batch, strict=True))
+            for fut in completed(futures):
+                run = by_future[id(fut)]
+                try:
+                    rec = fut.result()
+                except Exception as exc:
+                    if pool_broken(exc):
+                        unfinished.append(run)
+                        continue
+                    if not worker_killed(exc):  # the run could not be sent or its record written
+                        self.state.lost.append(f"{run.label}: {type(exc).__name__}: {one_line(exc)}")
+                        if self.progress:
+                            self.progress(self.state)
+                        continue
+                    rec = death_record(run, self.out, f"Dask gave up on it: {one_line(exc)}")
+                self._done(run, rec)
+        return unfinished
+
+    def run(self, todo: list[PlannedRun]) -> None:
+        for run in todo:  # an earlier campaign killed under it
+            marker_path(self.out, run.key).unlink(missing_ok=True)
+        pending = todo
+        workers = max(1, self.options.workers)
+        while pending:
+            unfinished = self.attempt(pending, workers)
+            suspects = [r for r in unfinished if read_marker(self.out, r.key) is not None]
+            if unfinished and not suspects:  # the pool broke before any run started
+                self.state.lost += [f"{r.label}: the worker processes died before it started" for r in unfinished]
+                return
+            pending = [r for r in unfinished if r not in suspects]
+            for run in suspects:  # each alone: a death now is the run's own
+                marker_path(self.out, run.key).unlink(missing_ok=True)
+                if self.attempt([run], 1):
+                    self._done(run, death_record(run, self.out, "it died again when the run was retried alone"))
 
 
 def run_campaign(
@@ -71,11 +156,15 @@ def run_campaign(
     out = Path(options.out_dir).resolve()
     out.mkdir(parents=True, exist_ok=True)
     plan = plan_campaign(options.paths, options.runs, options.seeds, options.clock)
+    stale = _stale(out, plan)
+    if options.prune and stale:
+        _prune(out, stale)
+        stale = []
     records: dict[str, dict[str, Any]] = {}
     todo: list[PlannedRun] = []
     for run in plan:
         rec = load_record(out, run.key)
-        if rec is None:
+        if rec is None or (options.retry_errors and rec.get("verdict") == "ERROR"):
             todo.append(run)
         else:
             records[run.key] = rec
@@ -86,23 +175,7 @@ def run_campaign(
     env = {k: v for k, v in os.environ.items() if k == "PYTHONPATH"} | options.env
     try:
         if todo:
-            with open_executor(options.scheduler, max(1, options.workers), env) as ex:
-                futures = [ex.submit(execute_run, run, str(out)) for run in todo]
-                by_future = dict(zip(map(id, futures), todo, strict=True))
-                for fut in completed(futures):
-                    run = by_future[id(fut)]
-                    try:
-                        rec = fut.result()
-                    except Exception as exc:  # a worker died or could not write: the run stays missing
-                        state.lost.append(f"{run.label}: {type(exc).__name__}: {exc}")
-                    else:
-                        records[run.key] = rec
-                        state.done += 1
-                        state.executed += 1
-                        state.failing += _failing(rec)
-                        state.last = rec
-                    if progress:
-                        progress(state)
+            _Execution(options, out, env, state, records, progress).run(todo)
     finally:  # also when interrupted: every run recorded so far (a worker may have finished one unseen)
         for run in plan:
             if run.key not in records and (rec := load_record(out, run.key)) is not None:
@@ -110,7 +183,7 @@ def run_campaign(
         missing = [r.key for r in plan if r.key not in records]
         result = {
             "campaign": {"paths": [str(p) for p in options.paths], "planned": len(plan), "complete": not missing,
-                         "missing": missing},
+                         "missing": missing, "stale": stale},
             "aggregate": aggregate(records.values()),
             "invocation": {"executed": state.executed, "reused": len(plan) - len(todo), "lost": state.lost,
                            "workers": options.workers, "scheduler": options.scheduler or "processes"},

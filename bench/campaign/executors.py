@@ -23,10 +23,12 @@ import signal
 from collections.abc import Iterator, Mapping
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from concurrent.futures import as_completed as cf_completed
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 __all__ = [
     "local_executor", "dask_executor", "open_executor", "stop_local", "scheduler_addresses", "completed", "LOOPBACK",
+    "pool_broken", "worker_killed",
 ]
 
 LOOPBACK = "127.0.0.1"
@@ -112,3 +114,15 @@ def completed(futures: list[Any]) -> Iterator[Any]:
         yield from dask_completed(futures)
         return
     yield from cf_completed(futures)
+
+
+def pool_broken(exc: BaseException) -> bool:
+    """Whether a run's exception is its local pool breaking (a worker process died: every
+    run not finished fails with it)."""
+    return isinstance(exc, BrokenProcessPool)
+
+
+def worker_killed(exc: BaseException) -> bool:
+    """Whether a run's exception is Dask giving up on it after its workers died under it
+    (``KilledWorker``, after the scheduler's ``allowed-failures`` retries on other workers)."""
+    return type(exc).__name__ == "KilledWorker"

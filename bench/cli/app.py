@@ -143,9 +143,9 @@ def _given_input(exc: OSError, args: argparse.Namespace) -> str | None:
 
 
 def _output_folder(args: argparse.Namespace | None) -> Path | None:
-    """The output folder of the command (``bench run``/``accept``), where its traceback
+    """The output folder of the command (``bench run``/``accept``/``campaign``), where its traceback
     log goes; None for commands without one."""
-    if args is None or args.command not in ("run", "accept"):
+    if args is None or args.command not in ("run", "accept", "campaign"):
         return None
     if getattr(args, "out", None):
         return Path(args.out)

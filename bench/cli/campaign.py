@@ -36,6 +36,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--clock", choices=("lockstep", "realtime"), help="override the cases' clock mode")
     p.add_argument("--workers", type=int, default=1, help="parallel worker processes (default 1)")
     p.add_argument("--scheduler", help="'local' for a Dask LocalCluster on 127.0.0.1, or a Dask scheduler address")
+    p.add_argument("--retry-errors", action="store_true", help="run again the runs recorded ERROR")
+    p.add_argument("--prune", action="store_true",
+                   help="delete the records and recordings of runs the campaign no longer has")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     p.set_defaults(handler=_run)
 
@@ -65,7 +68,8 @@ def _run(args: argparse.Namespace) -> int:
         print("bench campaign: --runs and --workers must be at least 1", file=sys.stderr)
         return EXIT_USAGE
     options = CampaignOptions(list(args.paths), Path(args.out), args.runs, tuple(args.seed) if args.seed else None,
-                              args.clock, args.workers, args.scheduler)
+                              args.clock, args.workers, args.scheduler, retry_errors=args.retry_errors,
+                              prune=args.prune)
     result = run_campaign(options, _progress(args.quiet))
     agg = result["aggregate"]
     for label, case in agg["cases"].items():
@@ -76,6 +80,9 @@ def _run(args: argparse.Namespace) -> int:
           f"{inv['reused']} reused); {Path(args.out) / 'campaign.json'}")
     for note in inv["lost"]:
         print(for_terminal(f"bench campaign: not run: {note}"), file=sys.stderr)
+    if stale := result["campaign"]["stale"]:
+        print(f"bench campaign: {len(stale)} record(s) under {Path(args.out) / 'runs'} belong to no run of this "
+              "campaign (--prune deletes them)", file=sys.stderr)
     verdicts = {v for c in agg["cases"].values() for v in c["verdicts"]}
     if not result["campaign"]["complete"] or "ERROR" in verdicts:
         return EXIT_ERROR

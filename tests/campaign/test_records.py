@@ -42,3 +42,22 @@ def test_an_interrupted_run_writes_no_record_and_the_campaign_is_incomplete(tmp_
     assert result["invocation"]["executed"] == 0 and len(result["invocation"]["lost"]) == 2
     assert not result["campaign"]["complete"] and len(result["campaign"]["missing"]) == 2
     assert not list((out / "runs").glob("*.json")) if (out / "runs").exists() else True
+
+
+def test_stale_records_are_named_and_pruned_only_when_asked(tmp_path):
+    case = _copy(tmp_path)
+    out = tmp_path / "out"
+    first = run_campaign(CampaignOptions([str(case)], out, runs=2, workers=1))
+    assert first["campaign"]["stale"] == []
+    keys = first["aggregate"]["keys"]
+    case.write_text(case.read_text().replace('at_most = "5 m"', 'at_most = "6 m"'))  # every key changes
+    (run,) = plan_campaign([case], seeds=(1,))
+    kept = run_campaign(CampaignOptions([str(case)], out, seeds=(1,), workers=1))
+    assert kept["campaign"]["stale"] == sorted(keys) and kept["aggregate"]["keys"] == [run.key]
+    assert all(record_path(out, k).exists() for k in keys)  # named, not deleted
+    old_recordings = [out / load_record(out, k)["recording"] for k in keys]
+    assert all(p.exists() for p in old_recordings)
+    pruned = run_campaign(CampaignOptions([str(case)], out, seeds=(1,), workers=1, prune=True))
+    assert pruned["campaign"]["stale"] == [] and pruned["invocation"]["executed"] == 0
+    assert not any(record_path(out, k).exists() for k in keys) and not any(p.exists() for p in old_recordings)
+    assert (out / load_record(out, run.key)["recording"]).exists()  # the campaign's own run kept
