@@ -44,12 +44,16 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _progress(quiet: bool):
+    from bench.campaign.sweep import point_label
+
     def show(state) -> None:
         if quiet:
             return
         last = state.last
         if last is not None:
-            label = f"{last['case_id']}{'[' + last['variant'] + ']' if last.get('variant') else ''} seed {last['seed']}"
+            point = point_label(tuple(tuple(kv) for kv in last.get("sweep") or ()))
+            variant = f"[{last['variant']}]" if last.get("variant") else ""
+            label = f"{last['case_id']}{variant}{point} seed {last['seed']}"
             print(for_terminal(f"  {label}: {last.get('verdict')}"), file=sys.stderr)
             state.last = None
         eta = state.eta_s
