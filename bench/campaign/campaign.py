@@ -23,6 +23,7 @@ from bench.campaign.aggregate import aggregate
 from bench.campaign.executors import completed, open_executor, pool_broken, worker_killed
 from bench.campaign.guard import death_record, guarded_run, marker_path, read_marker
 from bench.campaign.plan import PlannedRun, plan_campaign
+from bench.campaign.verdicts import judge_groups
 from bench.campaign.work import load_record, record_path, write_atomic
 from bench.crashlog import one_line
 
@@ -170,10 +171,10 @@ def run_campaign(
             records[run.key] = rec
     state = CampaignProgress(total=len(plan), done=len(records), to_run=len(todo),
                              failing=sum(map(_failing, records.values())))
-    if progress:
-        progress(state)
     env = {k: v for k, v in os.environ.items() if k == "PYTHONPATH"} | options.env
     try:
+        if progress:
+            progress(state)
         if todo:
             _Execution(options, out, env, state, records, progress).run(todo)
     finally:  # also when interrupted: every run recorded so far (a worker may have finished one unseen)
@@ -181,14 +182,21 @@ def run_campaign(
             if run.key not in records and (rec := load_record(out, run.key)) is not None:
                 records[run.key] = rec
         missing = [r.key for r in plan if r.key not in records]
+        try:
+            verdicts, failed = judge_groups(plan, records), None
+        except Exception as exc:  # a bench bug: still write what the runs gave, then raise it
+            verdicts, failed = {}, exc
         result = {
             "campaign": {"paths": [str(p) for p in options.paths], "planned": len(plan), "complete": not missing,
                          "missing": missing, "stale": stale},
             "aggregate": aggregate(records.values()),
+            "verdicts": verdicts,
             "invocation": {"executed": state.executed, "reused": len(plan) - len(todo), "lost": state.lost,
                            "workers": options.workers, "scheduler": options.scheduler or "processes"},
         }
         write_atomic(out / "campaign.json", result)
+        if failed is not None:
+            raise failed
     return result
 
 

@@ -73,7 +73,7 @@ def execute_run(run: PlannedRun, out_dir: str) -> dict[str, Any]:
     from bench.acceptance.runner import recording_name, runner_for
     from bench.acceptance.verdict import Verdict
     from bench.campaign.sweep import case_at
-    from bench.crashlog import one_line
+    from bench.crashlog import one_line, write_traceback
     from bench.record.lock import clear_outputs
     from bench.scoring.data import load_run
 
@@ -100,6 +100,7 @@ def execute_run(run: PlannedRun, out_dir: str) -> dict[str, Any]:
         result = score_run(data, case)
         worse = {c.id: "lower" if c.limit.comparator == "at_least" else "higher" for c in case.criteria}
     except Exception as exc:  # a run that could not be executed or judged: ERROR, recorded
+        write_traceback(exc, folder, context=f"bench campaign: {run.label}")
         record.update(verdict=Verdict.ERROR.value, bench_issues=[f"{type(exc).__name__}: {one_line(exc)}"])
     else:
         if interrupted:
@@ -111,6 +112,8 @@ def execute_run(run: PlannedRun, out_dir: str) -> dict[str, Any]:
             criteria={cid: {"value": _number(v.value), "verdict": v.verdict.value, "reason": v.reason,
                             "worse": worse.get(cid, "higher")}
                       for cid, v in sorted(result.values.items())},
+            raw={cid: {"value": _number(v.value), "verdict": v.verdict.value, "reason": v.reason}
+                 for cid, v in sorted(result.raw.items())},  # comparisons' and negative controls' values
         )
     record["complete"] = True
     write_atomic(record_path(base, run.key), record)

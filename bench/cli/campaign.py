@@ -5,8 +5,10 @@ LocalCluster on loopback with ``--scheduler local``, or an existing Dask cluster
 ADDRESS), records each run under DIR and aggregates them into ``DIR/campaign.json``
 (:mod:`bench.campaign`; docs/campaigns.md). Starting it again runs only what is missing.
 
-Exit codes: 0 every run PASS or MARGINAL; 1 a run FAILed; 2 a malformed case or bad
-usage; 3 a run was ERROR or could not be run (the campaign is then incomplete).
+Each case (at each sweep point) is judged over all its runs as ``bench accept`` judges it
+(:mod:`bench.campaign.verdicts`: Monte Carlo modes, comparisons, negative controls).
+Exit codes: 0 every case PASS or MARGINAL; 1 a case FAILed; 2 a malformed case or bad
+usage; 3 a case was ERROR: a run ERROR, or not run (the campaign is then incomplete).
 """
 
 from __future__ import annotations
@@ -87,7 +89,11 @@ def _run(args: argparse.Namespace) -> int:
     if stale := result["campaign"]["stale"]:
         print(f"bench campaign: {len(stale)} record(s) under {Path(args.out) / 'runs'} belong to no run of this "
               "campaign (--prune deletes them)", file=sys.stderr)
-    verdicts = {v for c in agg["cases"].values() for v in c["verdicts"]}
-    if not result["campaign"]["complete"] or "ERROR" in verdicts:
+    judged = result["verdicts"]
+    for label, case in judged.items():
+        print(for_terminal(f"{label}: {case['verdict']} over {case['runs']} run(s)"
+                           + "".join(f"; {e}" for e in case["errors"])))
+    verdicts = {case["verdict"] for case in judged.values()}
+    if not result["campaign"]["complete"] or "ERROR" in verdicts or not judged:
         return EXIT_ERROR
     return EXIT_FAIL if "FAIL" in verdicts else EXIT_OK

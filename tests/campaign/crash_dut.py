@@ -1,6 +1,7 @@
 """An in-process DUT that kills the process it runs in (as a crashing native library or
-the out-of-memory killer would) when its config says ``crash = true``; otherwise it
-reports the origin, which the case's criteria FAIL."""
+the out-of-memory killer would) when its config says ``crash = true`` and the environment
+has ``BENCH_TEST_CRASH_DUT=1`` (so that pytest collecting the case file runs it harmlessly);
+otherwise it reports the origin at 100 Hz."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ class Crash(Estimator):
     name = "crash"
 
     def configure(self, config):
-        self.crash = bool(config.get("crash", False))
+        self.crash = bool(config.get("crash", False)) and os.environ.get("BENCH_TEST_CRASH_DUT") == "1"
 
     def step(self, inputs):
         if self.crash:
@@ -25,4 +26,5 @@ class Crash(Estimator):
         sol = np.zeros(1, NAV_SOLUTION_DTYPE)
         q = np.zeros(1, NAV_QUALITY_DTYPE)
         sol["t_ns"] = q["t_ns"] = inputs.t_ns
+        sol["valid"] = 1
         return EstimatorOutput(sol, q)

@@ -18,13 +18,14 @@ HERE = Path(__file__).parent
 
 @pytest.mark.parametrize("scheduler", [None, "local"])
 def test_a_run_that_kills_its_worker_is_an_error_naming_it(tmp_path, scheduler):
-    env = {"PYTHONPATH": bench_env()["PYTHONPATH"]}
+    env = {"PYTHONPATH": bench_env()["PYTHONPATH"], "BENCH_TEST_CRASH_DUT": "1"}
     result = run_campaign(CampaignOptions([str(HERE / "crash_case.toml")], tmp_path, workers=2,
                                           scheduler=scheduler, env=env))
     assert result["campaign"]["complete"] and result["invocation"]["lost"] == []
     groups = result["aggregate"]["cases"]
     assert groups["CMP-CRASH[crash]"]["verdicts"] == {"ERROR": 2}
-    assert groups["CMP-CRASH[origin]"]["verdicts"] == {"FAIL": 2}  # run to their end beside the crashes
+    assert groups["CMP-CRASH[origin]"]["verdicts"] == {"PASS": 2}  # run to their end beside the crashes
+    assert result["verdicts"]["CMP-CRASH"]["verdict"] == "ERROR"
     records = [json.loads(p.read_text()) for p in (tmp_path / "runs").glob("*.json")]
     crashed = [r for r in records if r["variant"] == "crash"]
     assert len(crashed) == 2

@@ -1,0 +1,82 @@
+"""The verdict of each case of a campaign, judged over its runs as ``bench accept`` judges.
+
+A run's own verdict (its record) is only part of a case's: a criterion's Monte Carlo mode
+(at least k runs, a percentile at a confidence, the mean of the runs) is judged over the
+runs, a comparison of two variants (``relative_to``) over the pairs of runs with the same
+seed, a negative control (``must_fail_on``) the other way round. :func:`judge_groups`
+rebuilds each run's outcomes from its record and judges every case (at every sweep point)
+with :func:`bench.acceptance.judge.judge_case`, the function ``bench accept`` uses, over
+every run the campaign planned for it: a run without a record makes the case ERROR (never
+a verdict on fewer runs than asked).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+from bench.acceptance.criteria import RunValue
+from bench.acceptance.judge import RunResult, judge_case
+from bench.acceptance.verdict import Verdict
+from bench.campaign.plan import PlannedRun
+from bench.campaign.sweep import case_at, point_label
+
+__all__ = ["judge_groups", "run_result"]
+
+
+def _value(c: Mapping[str, Any], seed: int) -> RunValue:
+    v = c.get("value")
+    return RunValue(seed, math.nan if v is None else float(v), Verdict(c["verdict"]), c.get("reason") or "")
+
+
+def run_result(rec: Mapping[str, Any]) -> RunResult:
+    """A run's outcomes as :func:`bench.acceptance.judge.score_run` gave them, from its record
+    (values SI; ``raw``: the values that feed comparisons and negative controls)."""
+    seed = int(rec["seed"])
+    return RunResult(
+        str(rec.get("recording") or ""), rec["case_id"], rec.get("variant"), seed, Verdict(rec["verdict"]),
+        list(rec.get("bench_issues") or []), list(rec.get("dut_issues") or []),
+        values={cid: _value(c, seed) for cid, c in (rec.get("criteria") or {}).items()},
+        raw={cid: _value(c, seed) for cid, c in (rec.get("raw") or {}).items()},
+    )
+
+
+def _num(x: float) -> float | None:
+    return None if math.isnan(x) else x
+
+
+def judge_groups(plan: Iterable[PlannedRun], records: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
+    """Per case and sweep point (``CASE{key=value}``): its verdict over the runs planned for
+    it, each criterion's verdict per variant (value in the criterion's display unit), and
+    why it could not be judged."""
+    groups: dict[tuple[str, tuple[tuple[str, Any], ...]], list[PlannedRun]] = {}
+    for run in plan:
+        groups.setdefault((run.case_file, run.point), []).append(run)
+    out: dict[str, Any] = {}
+    for (case_file, point), runs in sorted(groups.items(), key=lambda g: (g[1][0].case_id, point_label(g[0][1]))):
+        label = runs[0].case_id + point_label(point)
+        try:
+            case = case_at(case_file, point)
+        except Exception as exc:  # the case file changed or went away since it was planned
+            out[label] = {"case_id": runs[0].case_id, "sweep": [list(kv) for kv in point], "verdict": "ERROR",
+                          "runs": len(runs), "errors": [f"the case could not be read again: {exc}"], "criteria": []}
+            continue
+        recs = [records[r.key] for r in runs if r.key in records]
+        errors = []
+        if len(recs) < len(runs):
+            errors.append(f"{len(runs) - len(recs)} of {len(runs)} planned runs have no record: not judged on fewer")
+        cr = judge_case(case, [run_result(r) for r in sorted(recs, key=lambda r: (r.get("variant") or "", r["seed"]))],
+                        errors)
+        out[label] = {
+            "case_id": case.id, "sweep": [list(kv) for kv in point], "verdict": cr.verdict.value, "runs": len(runs),
+            "errors": list(cr.errors),
+            "criteria": [
+                {"id": c.criterion.id, "variant": c.variant, "control": c.control, "verdict": c.verdict.value,
+                 "value": _num(c.criterion.display(c.aggregate.value)), "unit": c.criterion.unit,
+                 "limit": c.criterion.limit.text(c.criterion.unit), "monte_carlo": c.criterion.monte_carlo.text(),
+                 "reason": c.aggregate.reason}
+                for c in cr.criteria
+            ],
+        }
+    return out
