@@ -1,0 +1,130 @@
+"""The campaign report: ``campaign_report.html`` and ``campaign_report.pdf`` of a campaign
+folder, from its ``campaign.json`` alone (the aggregate and what the campaign planned).
+
+Sections: identification (paths, planned, complete and missing runs, executor, bench
+version, generated time; a campaign that is incomplete says so at the top), a summary
+table per case group (runs, verdict counts, pass rate with its interval), per group a
+table per criterion (limit, unit, runs, pass rate with interval, min, P50, P90 with its
+bounds, P95, P99, max, the worst runs with seed and recording) with the figures of
+:mod:`bench.report.campaign_figures`, and the sweeps (each criterion and the pass rate
+against each swept parameter). The PDF is laid out in parts (front matter, one part per
+group, the sweeps) by :mod:`bench.report.pdf`, every page footed as the certification
+report's. Never imports :mod:`bench.campaign`: the aggregate is a dict.
+"""
+
+from __future__ import annotations
+
+import base64
+import datetime as _dt
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from bench.report.campaign_figures import campaign_figures
+from bench.report.figures import Figure
+from bench.report.html import render_template
+
+__all__ = ["build_campaign_report", "campaign_model", "CampaignReportFiles", "HTML_NAME", "PDF_NAME"]
+
+HTML_NAME = "campaign_report.html"
+PDF_NAME = "campaign_report.pdf"
+_VERDICTS = ("PASS", "MARGINAL", "FAIL", "ERROR", "N/A")
+
+
+@dataclass
+class CampaignReportFiles:
+    """What :func:`build_campaign_report` wrote."""
+
+    html: Path
+    pdf: Path | None
+    figures: dict[str, list[Figure]]
+
+
+def _pct(c: Mapping[str, Any], name: str) -> dict[str, Any]:
+    p = ((c.get("display") or {}).get("percentiles") or {}).get(name) or {}
+    lo, hi = (p.get("interval") or [None, None])[:2]
+    return {"value": p.get("value"), "low": lo, "high": hi}
+
+
+def _criterion_row(cid: str, c: Mapping[str, Any]) -> dict[str, Any]:
+    d = c.get("display") or {}
+    return {
+        "id": cid, "metric": c.get("metric"), "window": c.get("window"), "limit": c.get("limit_text"),
+        "unit": "" if c.get("unit") in (None, "1") else c.get("unit"), "runs": c.get("runs"),
+        "measured": c.get("measured"), "verdicts": c.get("verdicts") or {}, "pass_rate": c.get("pass_rate"),
+        "interval": c.get("pass_rate_interval") or [None, None], "min": d.get("min"), "max": d.get("max"),
+        "p50": _pct(c, "p50"), "p90": _pct(c, "p90"), "p95": _pct(c, "p95"), "p99": _pct(c, "p99"),
+        "worst": c.get("worst") or [], "notes": c.get("notes") or [],
+        "requirements": ", ".join(c.get("requirements") or []),
+    }
+
+
+def campaign_model(campaign: Mapping[str, Any], out_dir: str | Path = "", *, generated_utc: str = "") -> dict[str, Any]:
+    """What the page shows, from ``campaign.json``'s content."""
+    from bench import __version__
+
+    camp = campaign.get("campaign") or {}
+    agg = campaign.get("aggregate") or {}
+    inv = campaign.get("invocation") or {}
+    groups = []
+    for label, case in (agg.get("cases") or {}).items():
+        groups.append({
+            "label": label, "anchor": f"g{len(groups)}", "case_id": case.get("case_id"),
+            "variant": case.get("variant"), "sweep": case.get("sweep") or [], "runs": case.get("runs"),
+            "seeds": case.get("seeds") or [], "verdicts": case.get("verdicts") or {},
+            "pass_rate": case.get("pass_rate"), "interval": case.get("pass_rate_interval") or [None, None],
+            "criteria": [_criterion_row(cid, c) for cid, c in (case.get("criteria") or {}).items()],
+        })
+    sweeps = []
+    for label, sw in (agg.get("sweeps") or {}).items():
+        axes = [{"key": a["key"], "field": a.get("field"), "unit": a.get("unit"), "numeric": a.get("numeric"),
+                 "pooled": a.get("pooled"), "points": a.get("points") or []} for a in sw.get("axes") or []]
+        sweeps.append({"label": label, "anchor": f"s{len(sweeps)}", "runs": sw.get("runs"), "axes": axes})
+    planned = camp.get("planned")
+    missing = list(camp.get("missing") or [])
+    return {
+        "title": "Campaign report",
+        "folder": str(out_dir), "paths": camp.get("paths") or [], "planned": planned,
+        "recorded": agg.get("runs", 0), "missing": missing, "complete": bool(camp.get("complete")),
+        "failing": agg.get("failing", 0), "confidence": agg.get("confidence", 0.95),
+        "executor": f"{inv.get('scheduler', '—')}, {inv.get('workers', '—')} worker(s)",
+        "invocation": inv, "bench_version": __version__,
+        "generated_utc": generated_utc or _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "groups": groups, "sweeps": sweeps, "verdict_names": _VERDICTS,
+    }
+
+
+def _figs(figs: Sequence[Figure]) -> list[dict[str, Any]]:
+    return [{"key": f.key, "title": f.title, "alt": f.alt, "caption": f.caption,
+             "b64": base64.b64encode(f.png).decode("ascii")} for f in figs]
+
+
+def render_campaign_html(model: Mapping[str, Any], figures: Mapping[str, Sequence[Figure]], part: str = "all") -> str:
+    """The page, or one part of it for the PDF: ``front``, a group's label, ``sweeps``."""
+    figs = {k: _figs(v) for k, v in figures.items()} if part != "front" else {}
+    return render_template("campaign_report.html.j2", m=model, figs=figs, part=part)
+
+
+def build_campaign_report(
+    campaign: Mapping[str, Any], out_dir: str | Path, *, pdf: bool = True, generated_utc: str = "",
+    stage: Callable[[str], None] | None = None,
+) -> CampaignReportFiles:
+    """Write ``campaign_report.html`` (and ``campaign_report.pdf``) for ``campaign`` (the
+    content of ``campaign.json``) into ``out_dir``."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    model = campaign_model(campaign, out, generated_utc=generated_utc)
+    figures = campaign_figures(campaign.get("aggregate") or {})
+    if stage is not None:
+        stage(f"drew {sum(len(f) for f in figures.values())} figures")
+    html_path = out / HTML_NAME
+    html_path.write_text(render_campaign_html(model, figures), encoding="utf-8")
+    pdf_path = None
+    if pdf:
+        from bench.report.pdf import assemble, render_part
+
+        parts = ["front", *(g["label"] for g in model["groups"])] + (["sweeps"] if model["sweeps"] else [])
+        laid = [render_part(render_campaign_html(model, figures, part=p)) for p in parts]
+        pdf_path = assemble(laid, out / PDF_NAME, footer=f"campaign {out.resolve().name}")
+    return CampaignReportFiles(html_path, pdf_path, figures)
