@@ -6,10 +6,11 @@ LocalCluster on loopback with ``--scheduler local``, or an existing Dask cluster
 ADDRESS), records each run under DIR and aggregates them into ``DIR/campaign.json``
 (:mod:`bench.campaign`; docs/campaigns.md). Starting it again runs only what is missing.
 At the end it writes the campaign report, ``DIR/campaign_report.html`` and ``.pdf``
-(:mod:`bench.report.campaign_report`), also for an incomplete campaign (a report of what
-is recorded, saying so); ``--no-report`` skips it, ``--no-pdf`` the PDF.
+(:mod:`bench.report.campaign_report`; its figures drawn by ``--workers`` processes),
+also for an incomplete campaign (a report of what is recorded, saying so);
+``--no-report`` skips it, ``--no-pdf`` the PDF.
 
-``bench campaign-report DIR`` rebuilds the report without running anything: the aggregate
+``bench campaign-report DIR [--no-pdf] [--workers K]`` rebuilds the report without running anything: the aggregate
 of the run records ``DIR/campaign.json`` names (those recorded since included), as
 ``bench campaign`` would compute it.
 
@@ -58,6 +59,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     r.add_argument("out", metavar="DIR", help="campaign folder (with campaign.json)")
     r.add_argument("--no-pdf", action="store_true", help="write the report's HTML only")
+    r.add_argument("--workers", type=int, default=1, help="processes drawing figures and laying out the PDF")
     r.set_defaults(handler=_report_only)
 
 
@@ -98,20 +100,20 @@ def _run(args: argparse.Namespace) -> int:
     for note in inv["lost"]:
         print(for_terminal(f"bench campaign: not run: {note}"), file=sys.stderr)
     if not args.no_report:
-        _write_report(result, Path(args.out), pdf=not args.no_pdf)
+        _write_report(result, Path(args.out), pdf=not args.no_pdf, workers=args.workers)
     verdicts = {v for c in agg["cases"].values() for v in c["verdicts"]}
     if not result["campaign"]["complete"] or "ERROR" in verdicts:
         return EXIT_ERROR
     return EXIT_FAIL if "FAIL" in verdicts else EXIT_OK
 
 
-def _write_report(campaign: dict, out: Path, *, pdf: bool) -> bool:
+def _write_report(campaign: dict, out: Path, *, pdf: bool, workers: int) -> bool:
     """Write the campaign report and print its paths; False (said on stderr) when it fails."""
     from bench.crashlog import one_line
     from bench.report.campaign_report import build_campaign_report
 
     try:
-        files = build_campaign_report(campaign, out, pdf=pdf)
+        files = build_campaign_report(campaign, out, pdf=pdf, workers=workers)
     except Exception as exc:  # a report never hides the campaign's outcome
         print(for_terminal(f"bench campaign: the report could not be written: {type(exc).__name__}: "
                            f"{one_line(exc)}"), file=sys.stderr)
@@ -148,4 +150,8 @@ def _report_only(args: argparse.Namespace) -> int:
     except (OSError, ValueError) as exc:
         print(for_terminal(f"bench campaign-report: cannot read {out / 'campaign.json'}: {exc}"), file=sys.stderr)
         return EXIT_USAGE
-    return EXIT_OK if _write_report(reaggregated(campaign, out), out, pdf=not args.no_pdf) else EXIT_ERROR
+    if args.workers < 1:
+        print("bench campaign-report: --workers must be at least 1", file=sys.stderr)
+        return EXIT_USAGE
+    ok = _write_report(reaggregated(campaign, out), out, pdf=not args.no_pdf, workers=args.workers)
+    return EXIT_OK if ok else EXIT_ERROR

@@ -38,7 +38,7 @@ from matplotlib.axes import Axes
 
 from bench.report.figures import STYLE, Figure, fmt, margins, render, subplots
 
-__all__ = ["campaign_figures", "criterion_figure", "pass_rate_figure", "sweep_figures"]
+__all__ = ["campaign_figures", "group_figures", "criterion_figure", "pass_rate_figure", "sweep_figures"]
 
 _MARK = {"p50": "tab:green", "p90": "tab:purple", "p95": "tab:brown"}
 
@@ -304,17 +304,27 @@ def _sweep_pass_rate(label: str, k: int, axis: Mapping[str, Any], x: np.ndarray,
     return Figure(f"sweep-{k}-pass-rate", title, render(fig), alt, caption, values)
 
 
+def group_figures(label: str, case: Mapping[str, Any]) -> list[Figure]:
+    """The figures of one case group: its pass rates, then each criterion's distribution."""
+    figs = [pass_rate_figure(label, case)]
+    for cid, c in case.get("criteria", {}).items():
+        f = criterion_figure(label, cid, c)
+        if f is not None:
+            figs.append(f)
+    return figs
+
+
+def figure_jobs(aggregate: Mapping[str, Any]) -> list[tuple[str, Any, tuple[Any, ...]]]:
+    """``(key, function, arguments)`` of every figure group of the report, in its order:
+    each case group by its label, each sweep as ``sweep:<label>`` (picklable: for a pool)."""
+    jobs: list[tuple[str, Any, tuple[Any, ...]]] = [
+        (label, group_figures, (label, case)) for label, case in aggregate.get("cases", {}).items()]
+    jobs += [(f"sweep:{label}", sweep_figures, (label, sweep))
+             for label, sweep in (aggregate.get("sweeps") or {}).items()]
+    return jobs
+
+
 def campaign_figures(aggregate: Mapping[str, Any]) -> dict[str, list[Figure]]:
     """Every figure of the campaign report, per case group label and per sweep
     (``sweep:<label>``), in the aggregate's order."""
-    out: dict[str, list[Figure]] = {}
-    for label, case in aggregate.get("cases", {}).items():
-        figs = [pass_rate_figure(label, case)]
-        for cid, c in case.get("criteria", {}).items():
-            f = criterion_figure(label, cid, c)
-            if f is not None:
-                figs.append(f)
-        out[label] = figs
-    for label, sweep in (aggregate.get("sweeps") or {}).items():
-        out[f"sweep:{label}"] = sweep_figures(label, sweep)
-    return out
+    return {key: fn(*args) for key, fn, args in figure_jobs(aggregate)}

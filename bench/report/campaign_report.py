@@ -15,13 +15,15 @@ report's. Never imports :mod:`bench.campaign`: the aggregate is a dict.
 from __future__ import annotations
 
 import base64
+import concurrent.futures as cf
 import datetime as _dt
+import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from bench.report.campaign_figures import campaign_figures
+from bench.report.campaign_figures import figure_jobs
 from bench.report.figures import Figure
 from bench.report.html import render_template
 
@@ -106,25 +108,76 @@ def render_campaign_html(model: Mapping[str, Any], figures: Mapping[str, Sequenc
     return render_template("campaign_report.html.j2", m=model, figs=figs, part=part)
 
 
+def _render_part(html: str) -> bytes:
+    from bench.report.pdf import render_part
+
+    return render_part(html)
+
+
+def _call(fn: Callable[..., Any], *args: Any) -> Any:
+    return fn(*args)
+
+
 def build_campaign_report(
     campaign: Mapping[str, Any], out_dir: str | Path, *, pdf: bool = True, generated_utc: str = "",
-    stage: Callable[[str], None] | None = None,
+    workers: int | None = None, stage: Callable[[str], None] | None = None,
 ) -> CampaignReportFiles:
     """Write ``campaign_report.html`` (and ``campaign_report.pdf``) for ``campaign`` (the
-    content of ``campaign.json``) into ``out_dir``."""
+    content of ``campaign.json``) into ``out_dir``. ``workers`` processes (the CPU count by
+    default; 1: none) draw the figures, one case group or sweep per job, and lay out the
+    PDF's parts as soon as their figures are in."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     model = campaign_model(campaign, out, generated_utc=generated_utc)
-    figures = campaign_figures(campaign.get("aggregate") or {})
-    if stage is not None:
-        stage(f"drew {sum(len(f) for f in figures.values())} figures")
-    html_path = out / HTML_NAME
-    html_path.write_text(render_campaign_html(model, figures), encoding="utf-8")
+    jobs = figure_jobs(campaign.get("aggregate") or {})
+    n = max(1, min(workers or os.cpu_count() or 1, len(jobs) + 1))
+    part_of = {g["label"]: g["label"] for g in model["groups"]} | {f"sweep:{s['label']}": "sweeps"
+                                                                     for s in model["sweeps"]}
+    parts = ["front", *(g["label"] for g in model["groups"])] + (["sweeps"] if model["sweeps"] else [])
+    figures: dict[str, list[Figure]] = {}
+    laid: dict[str, cf.Future] = {}
+    with cf.ProcessPoolExecutor(n) if n > 1 else _Serial() as pool:
+        if pdf:
+            laid["front"] = pool.submit(_render_part, render_campaign_html(model, {}, part="front"))
+        futs = {pool.submit(_call, fn, *args): key for key, fn, args in jobs}
+        waiting = {p: sum(1 for k in futs.values() if part_of.get(k) == p) for p in parts}
+        for fut in cf.as_completed(futs):
+            key = futs[fut]
+            figures[key] = fut.result()
+            part = part_of.get(key, "")
+            waiting[part] = waiting.get(part, 1) - 1
+            if pdf and waiting[part] == 0:
+                laid[part] = pool.submit(_render_part, render_campaign_html(model, figures, part=part))
+        for p in parts:  # a part without figures
+            if pdf and p not in laid:
+                laid[p] = pool.submit(_render_part, render_campaign_html(model, figures, part=p))
+        figures = {key: figures[key] for key, _fn, _args in jobs}  # in the report's order
+        if stage is not None:
+            stage(f"drew {sum(len(f) for f in figures.values())} figures")
+        html_path = out / HTML_NAME
+        html_path.write_text(render_campaign_html(model, figures), encoding="utf-8")
+        pieces = [laid[p].result() for p in parts] if pdf else []
     pdf_path = None
     if pdf:
-        from bench.report.pdf import assemble, render_part
+        from bench.report.pdf import assemble
 
-        parts = ["front", *(g["label"] for g in model["groups"])] + (["sweeps"] if model["sweeps"] else [])
-        laid = [render_part(render_campaign_html(model, figures, part=p)) for p in parts]
-        pdf_path = assemble(laid, out / PDF_NAME, footer=f"campaign {out.resolve().name}")
+        pdf_path = assemble(pieces, out / PDF_NAME, footer=f"campaign {out.resolve().name}")
     return CampaignReportFiles(html_path, pdf_path, figures)
+
+
+class _Serial:
+    """An executor that runs each job at once (one worker: no process to start)."""
+
+    def __enter__(self) -> _Serial:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+    def submit(self, fn: Callable[..., Any], *args: Any) -> cf.Future:
+        fut: cf.Future = cf.Future()
+        try:
+            fut.set_result(fn(*args))
+        except Exception as exc:
+            fut.set_exception(exc)
+        return fut

@@ -64,7 +64,7 @@ def test_a_categorical_sweep_is_drawn_at_its_positions():
 
 
 def test_the_report_names_every_group_and_criterion_and_says_it_is_incomplete(tmp_path):
-    files = build_campaign_report(_campaign(complete=False), tmp_path)
+    files = build_campaign_report(_campaign(complete=False), tmp_path, workers=2)
     page = html.unescape(files.html.read_text(encoding="utf-8"))
     for label in _campaign()["aggregate"]["cases"]:
         assert f'data-group="{label}"' in page
@@ -73,7 +73,7 @@ def test_the_report_names_every_group_and_criterion_and_says_it_is_incomplete(tm
     assert 'data-figure="sweep-0-pass-rate"' in page and 'data-figure="dist-LAT"' in page
     text = "".join(p.extract_text() for p in pypdf.PdfReader(files.pdf).pages)
     assert "S000" in text and "S001" in text and "INCOMPLETE" in text
-    complete = build_campaign_report(_campaign(), tmp_path / "c", pdf=False)
+    complete = build_campaign_report(_campaign(), tmp_path / "c", pdf=False, workers=1)
     assert complete.pdf is None and 'id="incomplete"' not in complete.html.read_text(encoding="utf-8")
 
 
