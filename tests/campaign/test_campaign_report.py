@@ -115,6 +115,11 @@ def test_a_swept_campaign_through_the_command_ends_with_its_report(tmp_path):
     assert again.returncode == 0, again.stderr
     assert html.escape(curve.alt) in (out / "campaign_report.html").read_text(encoding="utf-8")
     assert not list((out / "runs").glob("*.tmp"))
+    (out / "campaign_report.html").unlink()
+    quiet = subprocess.run(bench_command("campaign", str(case), "--runs", "2", "-o", str(out), "-q", "--no-report"),
+                           env=bench_env(), capture_output=True, text=True, timeout=120)
+    assert quiet.returncode == done.returncode and "6 reused" in quiet.stdout  # nothing run again
+    assert not (out / "campaign_report.html").exists() and "report:" not in quiet.stdout
     missing = subprocess.run(bench_command("campaign-report", str(tmp_path / "nothing")), env=bench_env(),
                              capture_output=True, text=True, timeout=60)
     assert missing.returncode == 2 and "campaign.json" in missing.stderr
