@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from bench.campaign.aggregate import clopper_pearson, criterion_meta, quantile_interval
-from bench.units import _NUMBER, parse_unit
+from bench.units import parse_unit, split_quantity
 
 __all__ = ["sweeps", "parse_x", "axis_of"]
 
@@ -50,10 +50,10 @@ def parse_x(value: Any) -> tuple[float, str, float] | None:
         return float(value), "", float(value)
     if not isinstance(value, str):
         return None
-    m = _NUMBER.match(value)
-    if not m:
+    split = split_quantity(value)
+    if split is None:
         return None
-    number, unit = float(m.group(1)), m.group(2)
+    number, unit = split
     if not unit:
         return number, "", number
     try:
