@@ -21,7 +21,7 @@ import numpy as np
 
 from bench.errors import ConfigError
 
-__all__ = ["quantity", "vector", "parse_unit", "DIMENSIONS", "G0", "to_unit"]
+__all__ = ["quantity", "vector", "parse_unit", "split_quantity", "DIMENSIONS", "G0", "to_unit"]
 
 #: Standard gravity, m/s^2, used by the units ``g``, ``mg`` and ``ug``.
 G0 = 9.80665
@@ -203,6 +203,14 @@ def _describe(dim: Dim) -> str:
 
 
 _NUMBER = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
+
+
+def split_quantity(text: str) -> tuple[float, str] | None:
+    """The number and the unit of a quantity string as written (``"80 ms"`` -> ``(80.0,
+    "ms")``, ``"3"`` -> ``(3.0, "")``); None when ``text`` does not start with a number.
+    The unit is not checked (:func:`parse_unit`)."""
+    m = _NUMBER.match(text)
+    return None if not m else (float(m.group(1)), m.group(2))
 
 
 def quantity(

@@ -10,7 +10,13 @@ same runs give the same aggregate on any executor and any number of workers.
 * the pass rate of each criterion (PASS or MARGINAL among the runs that judged it, N/A
   left out) with its Clopper-Pearson interval (``scipy.stats.beta``);
 * the worst runs of each criterion (worst verdict, then farthest value in the direction
-  that fails), linked to their recordings.
+  that fails), linked to their recordings;
+* per criterion what the campaign report draws it with, from the records: the display
+  ``unit``, ``comparator``, ``limit_text``, ``limit`` bounds and ``marginal_band`` in the
+  display unit, ``metric``, ``window``, ``requirements`` (a field that differs between
+  the records of a group is a bench bug: the first is kept and ``notes`` says so), and the
+  distribution of the values in the display unit (``display``);
+* ``sweeps``: each swept parameter as an axis (:mod:`bench.campaign.aggregate_sweep`).
 """
 
 from __future__ import annotations
@@ -23,7 +29,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-__all__ = ["aggregate", "clopper_pearson", "quantile_interval", "PERCENTILES"]
+__all__ = ["aggregate", "clopper_pearson", "quantile_interval", "distribution", "criterion_meta", "PERCENTILES"]
 
 PERCENTILES = (50.0, 90.0, 95.0, 99.0)
 _RANK = {"N/A": -1, "PASS": 0, "MARGINAL": 1, "FAIL": 2, "ERROR": 3}
@@ -56,29 +62,65 @@ def quantile_interval(
     return low, high
 
 
+_META = ("unit", "comparator", "limit_text", "limit", "marginal_band", "metric", "window", "requirements")
+
+
+def distribution(values: Sequence[float], confidence: float = 0.95) -> dict[str, Any]:
+    """``min``, ``max``, ``mean``, ``std``, the sorted ``values`` and the ``percentiles``
+    P50..P99 with their order-statistic intervals of measured values ({} for none)."""
+    values = sorted(values)
+    if not values:
+        return {}
+    arr = np.asarray(values)
+    out: dict[str, Any] = {"min": values[0], "max": values[-1], "mean": float(arr.mean()),
+                           "std": float(arr.std(ddof=1)) if len(values) > 1 else 0.0, "values": values}
+    out["percentiles"] = {
+        f"p{p:g}": {"value": float(np.quantile(arr, p / 100.0, method="inverted_cdf")),
+                    "interval": list(quantile_interval(values, p / 100.0, confidence))}
+        for p in PERCENTILES
+    }
+    return out
+
+
+def criterion_meta(cid: str, entries: Sequence[tuple[Mapping[str, Any], Mapping[str, Any]]]
+                   ) -> tuple[dict[str, Any], list[str]]:
+    """The unit, comparator, limit (text, bounds and marginal band in the display unit),
+    metric, window and requirements of a criterion, from its first record that has them;
+    a note per field that differs in another record (a bench bug: the first is kept)."""
+    meta: dict[str, Any] = {}
+    notes: list[str] = []
+    for rec, c in entries:
+        for k in _META:
+            if k not in c:
+                continue
+            if k not in meta:
+                meta[k] = c[k]
+            elif c[k] != meta[k] and not any(n.startswith(f"{cid}: {k} ") for n in notes):
+                notes.append(f"{cid}: {k} differs between runs ({json.dumps(meta[k])} and "
+                             f"{json.dumps(c[k])} in {rec['key'][:16]}); the first is shown")
+    return meta, notes
+
+
 def _criterion(cid: str, entries: list[tuple[Mapping[str, Any], Mapping[str, Any]]], worst_n: int,
                confidence: float) -> dict[str, Any]:
     verdicts = [c["verdict"] for _, c in entries]
     judged = [v for v in verdicts if v != "N/A"]
     passed = sum(v in ("PASS", "MARGINAL") for v in judged)
     low, high = clopper_pearson(passed, len(judged), confidence)
-    values = sorted(float(c["value"]) for _, c in entries if c.get("value") is not None)
+    values = [float(c["value"]) for _, c in entries if c.get("value") is not None]
+    meta, notes = criterion_meta(cid, entries)
     out: dict[str, Any] = {
         "runs": len(entries),
         "verdicts": {v: verdicts.count(v) for v in sorted(set(verdicts))},
         "pass_rate": passed / len(judged) if judged else None,
         "pass_rate_interval": [low, high],
         "measured": len(values),
+        **meta,
+        "notes": notes,
     }
-    if values:
-        arr = np.asarray(values)
-        out.update(min=values[0], max=values[-1], mean=float(arr.mean()),
-                   std=float(arr.std(ddof=1)) if len(values) > 1 else 0.0, values=values)
-        out["percentiles"] = {
-            f"p{p:g}": {"value": float(np.quantile(arr, p / 100.0, method="inverted_cdf")),
-                        "interval": list(quantile_interval(values, p / 100.0, confidence))}
-            for p in PERCENTILES
-        }
+    out.update(distribution(values, confidence))
+    shown = [float(c["display"]) for _, c in entries if c.get("display") is not None]
+    out["display"] = distribution(shown, confidence)
     higher = all(c.get("worse", "higher") == "higher" for _, c in entries)
 
     def badness(e: tuple[Mapping[str, Any], Mapping[str, Any]]) -> tuple[int, float, str]:
@@ -89,7 +131,8 @@ def _criterion(cid: str, entries: list[tuple[Mapping[str, Any], Mapping[str, Any
 
     out["worst"] = [
         {"key": rec["key"], "seed": rec["seed"], "variant": rec.get("variant"), "value": c.get("value"),
-         "verdict": c["verdict"], "recording": rec.get("recording")}
+         "display": c.get("display"), "verdict": c["verdict"], "recording": rec.get("recording"),
+         "sweep": rec.get("sweep") or []}
         for rec, c in sorted(entries, key=badness)[:worst_n]
     ]
     return out
@@ -127,5 +170,7 @@ def aggregate(records: Iterable[Mapping[str, Any]], worst_n: int = 3, confidence
             "criteria": {cid: _criterion(cid, per[cid], worst_n, confidence) for cid in sorted(per)},
         }
     failing = sum(r["verdict"] not in ("PASS", "MARGINAL", "N/A") for r in recs)
+    from bench.campaign.aggregate_sweep import sweeps
+
     return {"runs": len(recs), "failing": failing, "confidence": confidence, "keys": [r["key"] for r in recs],
-            "cases": cases}
+            "cases": cases, "sweeps": sweeps(recs, confidence)}

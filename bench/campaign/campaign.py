@@ -10,6 +10,7 @@ stopped, and ``aggregate`` is the same whichever executor ran it.
 from __future__ import annotations
 
 import contextlib
+import datetime as _dt
 import json
 import os
 import shutil
@@ -19,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from bench import __version__
 from bench.campaign.aggregate import aggregate
 from bench.campaign.executors import completed, open_executor, pool_broken, worker_killed
 from bench.campaign.guard import death_record, guarded_run, marker_path, read_marker
@@ -188,7 +190,10 @@ def run_campaign(
             verdicts, failed = {}, exc
         result = {
             "campaign": {"paths": [str(p) for p in options.paths], "planned": len(plan), "complete": not missing,
-                         "missing": missing, "stale": stale},
+                         "missing": missing, "stale": stale, "bench_version": __version__,
+                         "finished_utc": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+                         "options": {"runs": options.runs, "seeds": list(options.seeds) if options.seeds else None,
+                                     "clock": options.clock}},
             "aggregate": aggregate(records.values()),
             "verdicts": verdicts,
             "invocation": {"executed": state.executed, "reused": len(plan) - len(todo), "lost": state.lost,

@@ -26,7 +26,7 @@ from bench.errors import BenchError
 
 __all__ = ["execute_run", "record_path", "load_record", "write_atomic", "RunInterruptedError", "RECORD_VERSION"]
 
-RECORD_VERSION = 1
+RECORD_VERSION = 2
 
 
 class RunInterruptedError(BenchError):
@@ -44,13 +44,52 @@ def load_record(out_dir: str | Path, key: str) -> dict[str, Any] | None:
         rec = json.loads(record_path(out_dir, key).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    if not isinstance(rec, dict) or rec.get("key") != key or rec.get("complete") is not True:
-        return None
+    if (not isinstance(rec, dict) or rec.get("key") != key or rec.get("complete") is not True
+            or rec.get("version") != RECORD_VERSION):
+        return None  # a record of another version lacks what the aggregate reads: the run runs again
     return rec
 
 
 def _number(x: float) -> float | None:
     return float(x) if math.isfinite(x) else (None if math.isnan(x) else float(x))
+
+
+def _display(c: Any, x: float | None) -> float | None:
+    return None if x is None else _number(c.display(x))
+
+
+def criterion_fields(c: Any) -> dict[str, Any]:
+    """What the campaign report needs of a criterion (:class:`bench.acceptance.criteria.Criterion`),
+    besides the run's value: display unit, comparator, limit text and bounds, marginal band
+    (all in the display unit), metric, window and requirements."""
+    band = c.band()
+    return {
+        "unit": c.unit, "comparator": c.limit.comparator, "limit_text": c.limit.text(c.unit),
+        "limit": {"low": _display(c, c.limit.low), "high": _display(c, c.limit.high)},
+        "marginal_band": _display(c, band) if band else None,
+        "metric": c.metric, "window": c.window.name, "requirements": list(c.requirements),
+        "worse": "lower" if c.limit.comparator == "at_least" else "higher",
+    }
+
+
+def sweep_axes(case_file: str, point: Any) -> list[list[Any]] | None:
+    """``[[key, [values as declared]], ...]`` of the sweeps of ``case_file``, so that the
+    aggregate orders a sweep's points as written; None without a sweep (or when the
+    declaration does not match the point: the aggregate then orders by value)."""
+    if not point:
+        return None
+    from bench.campaign.sweep import sweep_points
+
+    points = sweep_points(case_file)
+    axes: list[list[Any]] = []
+    for i, (key, _value) in enumerate(point):
+        seen: dict[str, Any] = {}
+        for p in points:
+            if len(p) != len(point) or p[i][0] != key:
+                return None
+            seen.setdefault(json.dumps(p[i][1], sort_keys=True), p[i][1])
+        axes.append([key, list(seen.values())])
+    return axes
 
 
 def write_atomic(path: Path, data: dict[str, Any]) -> None:
@@ -82,11 +121,12 @@ def execute_run(run: PlannedRun, out_dir: str) -> dict[str, Any]:
     folder.mkdir(parents=True, exist_ok=True)
     record: dict[str, Any] = {
         "version": RECORD_VERSION, "key": run.key, "case_id": run.case_id, "case_file": run.case_file,
-        "variant": run.variant, "seed": run.seed,
+        "variant": run.variant, "seed": run.seed, "sweep_axes": None,
         "sweep": [list(kv) for kv in run.point], "criteria": {}, "bench_issues": [], "dut_issues": [],
     }
     try:
         case = case_at(run.case_file, run.point)
+        record["sweep_axes"] = sweep_axes(run.case_file, run.point)
         if run.clock:
             case = case.with_clock(run.clock)
         cv = case.for_variant(run.variant).with_seeds((run.seed,))
@@ -98,7 +138,7 @@ def execute_run(run: PlannedRun, out_dir: str) -> dict[str, Any]:
         data = load_run(path)
         interrupted = data.run_end.get("status") == "interrupted"
         result = score_run(data, case)
-        worse = {c.id: "lower" if c.limit.comparator == "at_least" else "higher" for c in case.criteria}
+        crits = {c.id: c for c in sorted(case.criteria, key=lambda c: c.variant != run.variant)[::-1]}
     except Exception as exc:  # a run that could not be executed or judged: ERROR, recorded
         write_traceback(exc, folder, context=f"bench campaign: {run.label}")
         record.update(verdict=Verdict.ERROR.value, bench_issues=[f"{type(exc).__name__}: {one_line(exc)}"])
@@ -109,12 +149,20 @@ def execute_run(run: PlannedRun, out_dir: str) -> dict[str, Any]:
             verdict=result.verdict.value,
             bench_issues=list(result.bench_issues),
             dut_issues=list(result.dut_issues),
-            criteria={cid: {"value": _number(v.value), "verdict": v.verdict.value, "reason": v.reason,
-                            "worse": worse.get(cid, "higher")}
-                      for cid, v in sorted(result.values.items())},
+            criteria={cid: _criterion_record(v, crits.get(cid)) for cid, v in sorted(result.values.items())},
             raw={cid: {"value": _number(v.value), "verdict": v.verdict.value, "reason": v.reason}
                  for cid, v in sorted(result.raw.items())},  # comparisons' and negative controls' values
         )
     record["complete"] = True
     write_atomic(record_path(base, run.key), record)
     return record
+
+
+def _criterion_record(v: Any, crit: Any) -> dict[str, Any]:
+    """One criterion of a run: its value (SI) and, with its criterion, its value in the
+    display unit (``display``) and :func:`criterion_fields`."""
+    value = _number(v.value)
+    out: dict[str, Any] = {"value": value, "verdict": v.verdict.value, "reason": v.reason, "worse": "higher"}
+    if crit is not None:
+        out.update(criterion_fields(crit), display=_display(crit, value))
+    return out

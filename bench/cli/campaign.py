@@ -1,14 +1,26 @@
-"""``bench campaign CASES... --runs N [--workers K] [--scheduler ADDRESS|local] -o DIR``.
+"""``bench campaign CASES... --runs N [--workers K] [--scheduler ADDRESS|local] -o DIR
+[--no-report] [--no-pdf]`` and ``bench campaign-report DIR [--no-pdf]``.
 
 Runs every case x variant x seed in parallel (local processes by default, a Dask
 LocalCluster on loopback with ``--scheduler local``, or an existing Dask cluster at
 ADDRESS), records each run under DIR and aggregates them into ``DIR/campaign.json``
 (:mod:`bench.campaign`; docs/campaigns.md). Starting it again runs only what is missing.
+At the end it writes the campaign report, ``DIR/campaign_report.html`` and ``.pdf``
+(:mod:`bench.report.campaign_report`; its figures drawn by ``--workers`` processes),
+also for an incomplete campaign (a report of what is recorded, saying so);
+``--no-report`` skips it, ``--no-pdf`` the PDF.
+
+``bench campaign-report DIR [--no-pdf] [--workers K]`` rebuilds the report without running anything: the aggregate
+and the case verdicts of the run records ``DIR/campaign.json`` plans (those recorded since included), as
+``bench campaign`` would compute them.
 
 Each case (at each sweep point) is judged over all its runs as ``bench accept`` judges it
 (:mod:`bench.campaign.verdicts`: Monte Carlo modes, comparisons, negative controls).
-Exit codes: 0 every case PASS or MARGINAL; 1 a case FAILed; 2 a malformed case or bad
-usage; 3 a case was ERROR: a run ERROR, or not run (the campaign is then incomplete).
+Exit codes of ``bench campaign``: 0 every case PASS or MARGINAL; 1 a case FAILed; 2 a
+malformed case or bad usage; 3 a case was ERROR: a run ERROR, or not run (the campaign is
+then incomplete). A report that cannot be written is said on stderr and changes none of
+them. Of ``bench campaign-report``: 0 written; 2 no readable ``DIR/campaign.json``; 3 the
+report could not be written.
 """
 
 from __future__ import annotations
@@ -42,7 +54,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--prune", action="store_true",
                    help="delete the records and recordings of runs the campaign no longer has")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    p.add_argument("--no-report", action="store_true", help="do not write DIR/campaign_report.html and .pdf")
+    p.add_argument("--no-pdf", action="store_true", help="write the report's HTML only")
     p.set_defaults(handler=_run)
+    r = sub.add_parser(
+        "campaign-report",
+        help="rebuild a campaign's report from its folder, running nothing",
+        description="Write DIR/campaign_report.html and .pdf from DIR/campaign.json and the run records it names.",
+    )
+    r.add_argument("out", metavar="DIR", help="campaign folder (with campaign.json)")
+    r.add_argument("--no-pdf", action="store_true", help="write the report's HTML only")
+    r.add_argument("--workers", type=int, default=1, help="processes drawing figures and laying out the PDF")
+    r.set_defaults(handler=_report_only)
 
 
 def _progress(quiet: bool):
@@ -93,7 +116,79 @@ def _run(args: argparse.Namespace) -> int:
     for label, case in judged.items():
         print(for_terminal(f"{label}: {case['verdict']} over {case['runs']} run(s)"
                            + "".join(f"; {e}" for e in case["errors"])))
+    if not args.no_report:
+        _write_report(result, Path(args.out), pdf=not args.no_pdf, workers=args.workers)
     verdicts = {case["verdict"] for case in judged.values()}
     if not result["campaign"]["complete"] or "ERROR" in verdicts or not judged:
         return EXIT_ERROR
     return EXIT_FAIL if "FAIL" in verdicts else EXIT_OK
+
+
+def _write_report(campaign: dict, out: Path, *, pdf: bool, workers: int) -> bool:
+    """Write the campaign report and print its paths; False (said on stderr) when it fails."""
+    from bench.crashlog import one_line
+    from bench.report.campaign_report import build_campaign_report
+
+    try:
+        files = build_campaign_report(campaign, out, pdf=pdf, workers=workers)
+    except Exception as exc:  # a report never hides the campaign's outcome
+        print(for_terminal(f"bench campaign: the report could not be written: {type(exc).__name__}: "
+                           f"{one_line(exc)}"), file=sys.stderr)
+        return False
+    print(f"report: {files.html}" + (f", {files.pdf}" if files.pdf else ""))
+    return True
+
+
+def reaggregated(campaign: dict, out: Path) -> dict:
+    """``campaign`` with its aggregate computed again from the records on disk of the runs it
+    names (recorded or missing), its ``missing`` and ``complete`` updated."""
+    from bench.campaign.aggregate import aggregate
+    from bench.campaign.work import load_record
+
+    camp = dict(campaign.get("campaign") or {})
+    keys = list((campaign.get("aggregate") or {}).get("keys") or []) + list(camp.get("missing") or [])
+    records, missing = [], []
+    for key in dict.fromkeys(keys):
+        rec = load_record(out, key)
+        if rec is None:
+            missing.append(key)
+        else:
+            records.append(rec)
+    camp.update(missing=missing, complete=not missing)
+    return {**campaign, "campaign": camp, "aggregate": aggregate(records),
+            "verdicts": _rejudged(campaign, camp, {r["key"]: r for r in records}, set(keys))}
+
+
+def _rejudged(campaign: dict, camp: dict, records: dict, keys: set[str]) -> dict:
+    """The case verdicts judged again from the records, when the campaign's cases still plan
+    exactly the runs ``campaign.json`` names; else its verdicts as written, each noting it."""
+    from bench.campaign.plan import plan_campaign
+    from bench.campaign.verdicts import judge_groups
+
+    opts = camp.get("options") or {}
+    try:
+        plan = plan_campaign(camp.get("paths") or [], opts.get("runs"),
+                             tuple(opts["seeds"]) if opts.get("seeds") else None, opts.get("clock"))
+    except Exception:  # the case files moved or no longer load
+        plan = None
+    if plan is not None and {r.key for r in plan} == keys:
+        return judge_groups(plan, records)
+    why = "verdicts as of the campaign's last invocation: its case files now plan other runs"
+    old = campaign.get("verdicts") or {}
+    return {label: {**v, "errors": [*v.get("errors", []), why]} for label, v in old.items()}
+
+
+def _report_only(args: argparse.Namespace) -> int:
+    import json
+
+    out = Path(args.out)
+    try:
+        campaign = json.loads((out / "campaign.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        print(for_terminal(f"bench campaign-report: cannot read {out / 'campaign.json'}: {exc}"), file=sys.stderr)
+        return EXIT_USAGE
+    if args.workers < 1:
+        print("bench campaign-report: --workers must be at least 1", file=sys.stderr)
+        return EXIT_USAGE
+    ok = _write_report(reaggregated(campaign, out), out, pdf=not args.no_pdf, workers=args.workers)
+    return EXIT_OK if ok else EXIT_ERROR

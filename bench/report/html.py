@@ -22,7 +22,7 @@ import jinja2
 from bench.report.model import fmt_num
 from bench.textsafe import xml_safe
 
-__all__ = ["render_html", "render_string", "setup_rows", "quality_cells"]
+__all__ = ["render_html", "render_string", "render_template", "setup_rows", "quality_cells"]
 
 def _line(d: Mapping[str, Any] | None, skip: tuple[str, ...] = ()) -> str:
     """A mapping as one line: ``key value, ...`` (empty and null values left out)."""
@@ -155,6 +155,14 @@ def render_html(
         line=_line,
         part=part,
     )
+
+
+def render_template(name: str, **context: Any) -> str:
+    """Render the package template ``name`` (``templates/<name>``) with the report's
+    conventions (autoescape, control characters made visible, the ``num`` filter), the
+    style sheet given as ``css``."""
+    css = files("bench.report").joinpath("templates", "report.css").read_text("utf-8")
+    return _env().get_template(name).render(css=css, **context)
 
 
 def render_string(source: str, filters: Mapping[str, Any] | None = None, **context: Any) -> str:

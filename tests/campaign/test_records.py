@@ -5,9 +5,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
+
 from bench.campaign.campaign import CampaignOptions, run_campaign
 from bench.campaign.plan import plan_campaign
-from bench.campaign.work import execute_run, load_record, record_path
+from bench.campaign.work import RECORD_VERSION, execute_run, load_record, record_path
 
 HERE = Path(__file__).parent
 
@@ -29,10 +31,22 @@ def test_a_record_is_small_and_complete(tmp_path):
     assert load_record(out, run.key) == rec
     assert rec["complete"] and rec["key"] == run.key and rec["seed"] == run.seed
     assert (out / rec["recording"]).is_file()
-    assert set(rec["criteria"]["POS"]) == {"value", "verdict", "reason", "worse"}
+    pos = rec["criteria"]["POS"]
+    assert set(pos) == {"value", "verdict", "reason", "worse", "unit", "display", "comparator", "limit_text",
+                        "limit", "marginal_band", "metric", "window", "requirements"}
+    assert pos["unit"] == "m" and pos["limit"] == {"low": None, "high": 2.5} and pos["limit_text"] == "<= 2.5 m"
+    assert pos["metric"] == "accuracy.horizontal.max" and pos["requirements"] == ["CMP"]
+    assert pos["display"] == pytest.approx(pos["value"])  # metres: display unit = SI
+    invalid = rec["criteria"]["INTEGRITY-missing"]  # a fraction shown in %
+    assert invalid["unit"] == "%" and invalid["limit"]["high"] == pytest.approx(0.1)
+    assert rec["version"] == RECORD_VERSION == 2 and rec["sweep_axes"] is None
     assert not list((out / "runs").glob("*.tmp"))
     record_path(out, run.key).write_text(json.dumps({**rec, "complete": False}))
     assert load_record(out, run.key) is None  # an incomplete record runs again
+    record_path(out, run.key).write_text(json.dumps({**rec, "version": 1}))
+    assert load_record(out, run.key) is None  # a record of another version runs again
+    result = run_campaign(CampaignOptions([str(tmp_path / "case.toml")], out, runs=1, workers=1))
+    assert result["invocation"]["executed"] == 1 and load_record(out, run.key)["version"] == 2
 
 
 def test_an_interrupted_run_writes_no_record_and_the_campaign_is_incomplete(tmp_path):
