@@ -102,7 +102,8 @@ def _case_notes(model: dict[str, Any], case_id: str, notes: Sequence[str]) -> No
             c["errors"] = [*c["errors"], *(f"report: {n}" for n in notes)]
 
 
-def _pool(n: int) -> cf.Executor | _Serial:
+def pool_of(n: int) -> cf.Executor | _Serial:
+    """``n`` worker processes, or with one the jobs run at once in this process."""
     return cf.ProcessPoolExecutor(n) if n > 1 else _Serial()
 
 
@@ -156,7 +157,7 @@ def build_report(
     n = max(1, min(workers or os.cpu_count() or 1, max(len(jobs), 2 if pdf else 1)))
     if progress is not None and jobs:
         progress(0, len(jobs))
-    with _pool(n) as pool:
+    with pool_of(n) as pool:
         if pdf:
             part_futs["front"] = pool.submit(_render_part, render_html(model, part="front", **kw))
             for cid in case_ids:

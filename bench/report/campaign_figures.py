@@ -19,6 +19,9 @@ Per swept key of a case (``sweeps``):
                            of each criterion that is not 1 at every point, against the
                            swept value.
 
+A criterion whose every run (two or more) has the same passing value (the integrity checks
+at 0, most often) gets no figure: its table row says all there is.
+
 A swept key whose values are quantities is a numeric axis labelled with the unit as written
 (``%``, ``ms``); any other is categorical, one tick per value. Colours as the certification
 report's (:data:`bench.report.figures.STYLE`: limits red dashed, values blue). Every figure
@@ -211,6 +214,10 @@ def sweep_figures(label: str, sweep: Mapping[str, Any]) -> list[Figure]:
         x, ticks, xname = _x(axis)
         pooled = " (pooled over the other swept keys)" if axis.get("pooled") else ""
         for cid, meta in axis.get("criteria", {}).items():
+            pts = [p["criteria"].get(cid, {}) for p in axis["points"]]
+            if all(p.get("pass_rate") == 1.0 for p in pts) and len({p.get("min") for p in pts}
+                                                                   | {p.get("max") for p in pts}) == 1:
+                continue  # the same passing value at every point and run
             fig = _sweep_metric(label, k, axis, cid, meta, x, ticks, xname, pooled)
             if fig is not None:
                 out.append(fig)
@@ -308,6 +315,9 @@ def group_figures(label: str, case: Mapping[str, Any]) -> list[Figure]:
     """The figures of one case group: its pass rates, then each criterion's distribution."""
     figs = [pass_rate_figure(label, case)]
     for cid, c in case.get("criteria", {}).items():
+        disp = c.get("display") or {}
+        if set(c.get("verdicts") or {}) == {"PASS"} and c.get("measured", 0) > 1 and disp.get("min") == disp.get("max"):
+            continue  # every run the same value and passing: its table row says all (integrity checks at 0)
         f = criterion_figure(label, cid, c)
         if f is not None:
             figs.append(f)

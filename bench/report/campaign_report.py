@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from bench.report.build import pool_of
 from bench.report.campaign_figures import figure_jobs
 from bench.report.figures import Figure
 from bench.report.html import render_template
@@ -140,7 +141,7 @@ def build_campaign_report(
     parts = ["front", *(g["label"] for g in model["groups"])] + (["sweeps"] if model["sweeps"] else [])
     figures: dict[str, list[Figure]] = {}
     laid: dict[str, cf.Future] = {}
-    with cf.ProcessPoolExecutor(n) if n > 1 else _Serial() as pool:
+    with pool_of(n) as pool:
         if pdf:
             laid["front"] = pool.submit(_render_part, render_campaign_html(model, {}, part="front"))
         futs = {pool.submit(_call, fn, *args): key for key, fn, args in jobs}
@@ -168,20 +169,3 @@ def build_campaign_report(
         pdf_path = assemble(pieces, out / PDF_NAME, footer=f"campaign {out.resolve().name}")
     return CampaignReportFiles(html_path, pdf_path, figures)
 
-
-class _Serial:
-    """An executor that runs each job at once (one worker: no process to start)."""
-
-    def __enter__(self) -> _Serial:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        return None
-
-    def submit(self, fn: Callable[..., Any], *args: Any) -> cf.Future:
-        fut: cf.Future = cf.Future()
-        try:
-            fut.set_result(fn(*args))
-        except Exception as exc:
-            fut.set_exception(exc)
-        return fut

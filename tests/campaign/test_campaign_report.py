@@ -108,6 +108,8 @@ def test_a_swept_campaign_through_the_command_ends_with_its_report(tmp_path):
     for label, verdict in judged.items():  # the case verdicts' table
         row = html.unescape(page).split(f'<tr data-case="{label}">', 1)[1].split("</tr>", 1)[0]
         assert f'data-verdict="{verdict}"' in row
+    assert 'data-figure="dist-POS"' in page  # values that differ between runs are drawn
+    assert 'data-figure="dist-INTEGRITY-order"' not in page  # 0 in every run: its table row says all
     assert 'data-figure="sweep-0-pass-rate"' in page and 'data-figure="sweep-0-INTEGRITY-gap"' in page
     curve = {f.key: f for f in campaign_figures(doc["aggregate"])["sweep:CMP-SYN"]}["sweep-0-pass-rate"]
     assert curve.values["pass_rate"] == [p["pass_rate"] for p in axis["points"]]
