@@ -7,9 +7,11 @@ case's runner into ``<dir>/recordings/<case id>/<key[:16]>/``, judges the record
 then :func:`os.replace`) only once the recording is finished. It returns that record, a
 small dict of numbers and strings, never arrays.
 
-A run interrupted (Ctrl-C, SIGTERM, a killed worker) writes no record, so the next
-campaign runs it again; a run that crashed or could not be executed is recorded ERROR
-with its reason (delete its record to try again).
+A run interrupted (Ctrl-C, SIGTERM) writes no record, so the next campaign runs it again;
+a run that crashed or could not be executed is recorded ERROR with its reason, its
+traceback in ``bench-error.log`` beside its recording (``bench campaign --retry-errors``
+runs it again). A run whose worker process dies under it is told by the campaign
+(:mod:`bench.campaign.guard`).
 """
 
 from __future__ import annotations
