@@ -75,3 +75,17 @@ def test_stale_records_are_named_and_pruned_only_when_asked(tmp_path):
     assert pruned["campaign"]["stale"] == [] and pruned["invocation"]["executed"] == 0
     assert not any(record_path(out, k).exists() for k in keys) and not any(p.exists() for p in old_recordings)
     assert (out / load_record(out, run.key)["recording"]).exists()  # the campaign's own run kept
+
+
+def test_a_run_that_cannot_run_is_an_error_record_with_its_traceback(tmp_path):
+    case = _copy(tmp_path)
+    (run,) = plan_campaign([case], runs=1)
+    case.unlink()  # the case file gone after planning: the worker cannot load it
+    out = tmp_path / "out"
+    rec = execute_run(run, str(out))
+    assert rec["verdict"] == "ERROR" and rec["complete"] and rec["criteria"] == {}
+    assert "case.toml" in rec["bench_issues"][0]
+    (log,) = (out / "recordings").rglob("bench-error.log")
+    text = log.read_text()
+    assert f"bench campaign: {run.label}" in text and "Traceback" in text
+    assert load_record(out, run.key) == rec
