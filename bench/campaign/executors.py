@@ -79,7 +79,7 @@ def dask_executor(scheduler: str, workers: int, env: Mapping[str, str] | None = 
         if scheduler == "local":
             # Dask's nannies set MALLOC_TRIM_THRESHOLD_=65536 in their workers (and in this
             # process): glibc then returns memory at every free, and a bench run's numpy
-            # work is about 25 % slower (benchmarks/campaign_scaling.py); unset for ours
+            # work is markedly slower (benchmarks/campaign_scaling.py, docs/campaigns.md)
             stack.enter_context(dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}))
             cluster = stack.enter_context(LocalCluster(
                 n_workers=workers, threads_per_worker=1, processes=True, host=LOOPBACK,

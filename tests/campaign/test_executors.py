@@ -55,7 +55,7 @@ def _malloc_trim() -> str | None:
 
 
 def test_the_local_cluster_workers_do_not_trim_malloc():
-    """Dask's default MALLOC_TRIM_THRESHOLD_=65536 slows a run by a quarter: unset in the
+    """Dask's default MALLOC_TRIM_THRESHOLD_=65536 slows a run markedly: unset in the
     workers of the LocalCluster the bench starts (and not leaked into this process)."""
     import os
 
