@@ -29,7 +29,9 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-__all__ = ["aggregate", "clopper_pearson", "quantile_interval", "distribution", "criterion_meta", "PERCENTILES"]
+__all__ = [
+    "aggregate", "clopper_pearson", "quantile_interval", "distribution", "criterion_meta", "pass_rate", "PERCENTILES",
+]
 
 PERCENTILES = (50.0, 90.0, 95.0, 99.0)
 _RANK = {"N/A": -1, "PASS": 0, "MARGINAL": 1, "FAIL": 2, "ERROR": 3}
@@ -101,19 +103,25 @@ def criterion_meta(cid: str, entries: Sequence[tuple[Mapping[str, Any], Mapping[
     return meta, notes
 
 
+def pass_rate(verdicts: Sequence[str], confidence: float = 0.95) -> tuple[float | None, list[float]]:
+    """The share of PASS or MARGINAL among the verdicts that judged (N/A left out; None when
+    none did) and its Clopper-Pearson interval."""
+    judged = [v for v in verdicts if v != "N/A"]
+    passed = sum(v in ("PASS", "MARGINAL") for v in judged)
+    return (passed / len(judged) if judged else None), list(clopper_pearson(passed, len(judged), confidence))
+
+
 def _criterion(cid: str, entries: list[tuple[Mapping[str, Any], Mapping[str, Any]]], worst_n: int,
                confidence: float) -> dict[str, Any]:
     verdicts = [c["verdict"] for _, c in entries]
-    judged = [v for v in verdicts if v != "N/A"]
-    passed = sum(v in ("PASS", "MARGINAL") for v in judged)
-    low, high = clopper_pearson(passed, len(judged), confidence)
+    rate, interval = pass_rate(verdicts, confidence)
     values = [float(c["value"]) for _, c in entries if c.get("value") is not None]
     meta, notes = criterion_meta(cid, entries)
     out: dict[str, Any] = {
         "runs": len(entries),
         "verdicts": {v: verdicts.count(v) for v in sorted(set(verdicts))},
-        "pass_rate": passed / len(judged) if judged else None,
-        "pass_rate_interval": [low, high],
+        "pass_rate": rate,
+        "pass_rate_interval": interval,
         "measured": len(values),
         **meta,
         "notes": notes,

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from bench.campaign.aggregate import clopper_pearson, criterion_meta, quantile_interval
+from bench.campaign.aggregate import criterion_meta, pass_rate, quantile_interval
 from bench.units import parse_unit, split_quantity
 
 __all__ = ["sweeps", "parse_x", "axis_of"]
@@ -85,15 +85,9 @@ def axis_of(values: Sequence[Any]) -> dict[str, Any]:
             "x_si": [p[2] for p in parsed]}  # type: ignore[index]
 
 
-def _rate(verdicts: Sequence[str], confidence: float) -> tuple[float | None, list[float]]:
-    judged = [v for v in verdicts if v != "N/A"]
-    passed = sum(v in ("PASS", "MARGINAL") for v in judged)
-    return (passed / len(judged) if judged else None), list(clopper_pearson(passed, len(judged), confidence))
-
-
 def _point_criterion(entries: Sequence[Mapping[str, Any]], confidence: float) -> dict[str, Any]:
     verdicts = [c["verdict"] for c in entries]
-    rate, interval = _rate(verdicts, confidence)
+    rate, interval = pass_rate(verdicts, confidence)
     values = sorted(float(c["display"]) for c in entries if c.get("display") is not None)
     out: dict[str, Any] = {"runs": len(entries), "verdicts": {v: verdicts.count(v) for v in sorted(set(verdicts))},
                            "pass_rate": rate, "pass_rate_interval": interval, "values": values}
@@ -129,6 +123,11 @@ def sweeps(records: Sequence[Mapping[str, Any]], confidence: float = 0.95) -> di
         for r in runs:
             for k, vals in r.get("sweep_axes") or []:
                 declared.setdefault(k, vals)
+        per: dict[str, list[tuple[Mapping[str, Any], Mapping[str, Any]]]] = {}
+        for r in runs:
+            for cid, c in sorted(r.get("criteria", {}).items()):
+                per.setdefault(cid, []).append((r, c))
+        meta = {cid: criterion_meta(cid, per[cid])[0] for cid in sorted(per)}
         axes = []
         for key in keys:
             at: dict[str, list[Mapping[str, Any]]] = {}
@@ -140,16 +139,11 @@ def sweeps(records: Sequence[Mapping[str, Any]], confidence: float = 0.95) -> di
                         at.setdefault(_text(v), []).append(r)
             values = _ordered(declared.get(key), seen)
             axis = axis_of(values)
-            per: dict[str, list[tuple[Mapping[str, Any], Mapping[str, Any]]]] = {}
-            for r in runs:
-                for cid, c in sorted(r.get("criteria", {}).items()):
-                    per.setdefault(cid, []).append((r, c))
-            meta = {cid: criterion_meta(cid, per[cid])[0] for cid in sorted(per)}
             points = []
             for i, v in enumerate(values):
                 prs = at[_text(v)]
                 verdicts = [r["verdict"] for r in prs]
-                rate, interval = _rate(verdicts, confidence)
+                rate, interval = pass_rate(verdicts, confidence)
                 crit = {cid: _point_criterion([r["criteria"][cid] for r in prs if cid in r.get("criteria", {})],
                                               confidence) for cid in sorted(per)}
                 points.append({"value": v, "label": label_of(v), "x": axis["x"][i], "x_si": axis["x_si"][i],

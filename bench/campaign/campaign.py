@@ -9,7 +9,6 @@ stopped, and ``aggregate`` is the same whichever executor ran it.
 
 from __future__ import annotations
 
-import contextlib
 import datetime as _dt
 import json
 import os
@@ -26,7 +25,7 @@ from bench.campaign.executors import completed, open_executor, pool_broken, work
 from bench.campaign.guard import death_record, guarded_run, marker_path, read_marker
 from bench.campaign.plan import PlannedRun, plan_campaign
 from bench.campaign.verdicts import judge_groups
-from bench.campaign.work import load_record, record_path, write_atomic
+from bench.campaign.work import load_record, read_json, record_path, write_atomic
 from bench.crashlog import one_line
 
 __all__ = ["CampaignOptions", "CampaignProgress", "run_campaign", "read_campaign"]
@@ -84,11 +83,10 @@ def _prune(out: Path, keys: list[str]) -> None:
     """Delete stale records and their recordings' folders."""
     for key in keys:
         rec = record_path(out, key)
-        with contextlib.suppress(OSError, ValueError):
-            where = json.loads(rec.read_text(encoding="utf-8")).get("recording")
-            folder = (out / where).parent if where else None
-            if folder is not None and folder.resolve().is_relative_to((out / "recordings").resolve()):
-                shutil.rmtree(folder, ignore_errors=True)
+        where = (read_json(rec) or {}).get("recording")
+        folder = (out / where).parent if isinstance(where, str) and where else None
+        if folder is not None and folder.resolve().is_relative_to((out / "recordings").resolve()):
+            shutil.rmtree(folder, ignore_errors=True)
         rec.unlink(missing_ok=True)
 
 

@@ -15,14 +15,13 @@ when a death is blamed on a run).
 from __future__ import annotations
 
 import datetime as _dt
-import json
 import os
 import socket
 from pathlib import Path
 from typing import Any
 
 from bench.campaign.plan import PlannedRun
-from bench.campaign.work import RECORD_VERSION, execute_run, record_path, write_atomic
+from bench.campaign.work import RECORD_VERSION, execute_run, read_json, record_path, write_atomic
 
 __all__ = ["guarded_run", "marker_path", "read_marker", "death_record", "DEATH"]
 
@@ -37,11 +36,7 @@ def marker_path(out_dir: str | Path, key: str) -> Path:
 
 def read_marker(out_dir: str | Path, key: str) -> dict[str, Any] | None:
     """The marker of run ``key`` (None: not started, or ended)."""
-    try:
-        m = json.loads(marker_path(out_dir, key).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    return m if isinstance(m, dict) else None
+    return read_json(marker_path(out_dir, key))
 
 
 def guarded_run(run: PlannedRun, out_dir: str) -> dict[str, Any]:

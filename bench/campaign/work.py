@@ -40,13 +40,19 @@ def record_path(out_dir: str | Path, key: str) -> Path:
     return Path(out_dir) / "runs" / f"{key}.json"
 
 
-def load_record(out_dir: str | Path, key: str) -> dict[str, Any] | None:
-    """The complete record of run ``key``, or None (missing, unreadable or incomplete)."""
+def read_json(path: Path) -> dict[str, Any] | None:
+    """A JSON object from ``path``; None when missing, unreadable or not an object."""
     try:
-        rec = json.loads(record_path(out_dir, key).read_text(encoding="utf-8"))
+        data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    if (not isinstance(rec, dict) or rec.get("key") != key or rec.get("complete") is not True
+    return data if isinstance(data, dict) else None
+
+
+def load_record(out_dir: str | Path, key: str) -> dict[str, Any] | None:
+    """The complete record of run ``key``, or None (missing, unreadable or incomplete)."""
+    rec = read_json(record_path(out_dir, key))
+    if (rec is None or rec.get("key") != key or rec.get("complete") is not True
             or rec.get("version") != RECORD_VERSION):
         return None  # a record of another version lacks what the aggregate reads: the run runs again
     return rec
@@ -140,7 +146,7 @@ def execute_run(run: PlannedRun, out_dir: str) -> dict[str, Any]:
         data = load_run(path)
         interrupted = data.run_end.get("status") == "interrupted"
         result = score_run(data, case)
-        crits = {c.id: c for c in sorted(case.criteria, key=lambda c: c.variant != run.variant)[::-1]}
+        crits = {c.id: c for c in case.criteria}  # ids are unique in a case
     except Exception as exc:  # a run that could not be executed or judged: ERROR, recorded
         write_traceback(exc, folder, context=f"bench campaign: {run.label}")
         record.update(verdict=Verdict.ERROR.value, bench_issues=[f"{type(exc).__name__}: {one_line(exc)}"])
