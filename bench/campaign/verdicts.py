@@ -6,8 +6,8 @@ runs, a comparison of two variants (``relative_to``) over the pairs of runs with
 seed, a negative control (``must_fail_on``) the other way round. :func:`judge_groups`
 rebuilds each run's outcomes from its record and judges every case (at every sweep point)
 with :func:`bench.acceptance.judge.judge_case`, the function ``bench accept`` uses, over
-every run the campaign planned for it: a run without a record makes the case ERROR (never
-a verdict on fewer runs than asked).
+every run the campaign planned for it: a run without a record, or a record without a
+criterion its run judges, makes the case ERROR (never a verdict on fewer runs than asked).
 """
 
 from __future__ import annotations
@@ -16,13 +16,14 @@ import math
 from collections.abc import Iterable, Mapping
 from typing import Any
 
+from bench.acceptance.case import TestCase
 from bench.acceptance.criteria import RunValue
 from bench.acceptance.judge import RunResult, judge_case
 from bench.acceptance.verdict import Verdict
 from bench.campaign.plan import PlannedRun
 from bench.campaign.sweep import case_at, point_label
 
-__all__ = ["judge_groups", "run_result"]
+__all__ = ["judge_groups", "run_result", "missing_criteria"]
 
 
 def _value(c: Mapping[str, Any], seed: int) -> RunValue:
@@ -40,6 +41,26 @@ def run_result(rec: Mapping[str, Any]) -> RunResult:
         values={cid: _value(c, seed) for cid, c in (rec.get("criteria") or {}).items()},
         raw={cid: _value(c, seed) for cid, c in (rec.get("raw") or {}).items()},
     )
+
+
+def missing_criteria(case: TestCase, rec: Mapping[str, Any]) -> list[str]:
+    """The criteria a judged run of its variant has that the record lacks (a damaged or
+    foreign record: judging without them would judge the case on fewer runs)."""
+    if rec.get("verdict") == "ERROR":
+        return []  # a run that could not be judged has none, and makes its case ERROR anyway
+    variant = rec.get("variant")
+    values, raw = rec.get("criteria") or {}, rec.get("raw") or {}
+    out = []
+    for c in case.criteria:
+        if c.relative_to is not None:
+            wanted = raw if variant in (c.variant, c.relative_to) else None
+        elif variant in c.must_fail_on:
+            wanted = raw
+        else:
+            wanted = values if c.variant in (None, variant) else None
+        if wanted is not None and c.id not in wanted:
+            out.append(c.id)
+    return out
 
 
 def _num(x: float) -> float | None:
@@ -66,6 +87,9 @@ def judge_groups(plan: Iterable[PlannedRun], records: Mapping[str, Mapping[str, 
         errors = []
         if len(recs) < len(runs):
             errors.append(f"{len(runs) - len(recs)} of {len(runs)} planned runs have no record: not judged on fewer")
+        for r in recs:
+            if lacking := missing_criteria(case, r):
+                errors.append(f"the record of {r['key'][:16]} (seed {r['seed']}) lacks {', '.join(lacking)}")
         cr = judge_case(case, [run_result(r) for r in sorted(recs, key=lambda r: (r.get("variant") or "", r["seed"]))],
                         errors)
         out[label] = {

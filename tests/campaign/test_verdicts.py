@@ -98,3 +98,25 @@ def test_a_case_missing_a_run_is_error(tmp_path):
     judged = left["verdicts"]["CMP-SYN"]
     assert not left["campaign"]["complete"]
     assert judged["verdict"] == "ERROR" and "1 of 6 planned runs have no record" in judged["errors"][0]
+
+
+def test_a_record_lacking_a_criterion_makes_its_case_error(tmp_path):
+    """A damaged record (valid, complete, but without a criterion its run judged, or without
+    the raw value of a comparison) is never judged on fewer runs: the case is ERROR."""
+    case_file = _case(tmp_path)
+    out = tmp_path / "campaign"
+    first = run_campaign(CampaignOptions([str(case_file)], out, workers=2))
+    assert first["verdicts"]["CMP-SYN"]["verdict"] in ("PASS", "MARGINAL")
+    records = {k: json.loads(record_path(out, k).read_text()) for k in first["aggregate"]["keys"]}
+    good = next(k for k, r in records.items() if r["variant"] == "good")
+    noisy = next(k for k, r in records.items() if r["variant"] == "noisy")
+    for key, section, cid in ((good, "criteria", "POS-2-OF-3"), (noisy, "raw", "GOOD-BETTER")):
+        damaged = dict(records[key])
+        damaged[section] = {k: v for k, v in damaged[section].items() if k != cid}
+        record_path(out, key).write_text(json.dumps(damaged))
+        again = run_campaign(CampaignOptions([str(case_file)], out, workers=2))
+        assert again["invocation"]["executed"] == 0  # the damaged record is reused, not run again
+        judged = again["verdicts"]["CMP-SYN"]
+        assert judged["verdict"] == "ERROR", (section, cid)
+        assert any(f"lacks {cid}" in e for e in judged["errors"])
+        record_path(out, key).write_text(json.dumps(records[key]))
