@@ -91,9 +91,11 @@ def _prune(out: Path, keys: list[str]) -> None:
 
 
 class _Execution:
-    """This invocation's runs on an executor, with the death of a worker told apart:
-    a broken local pool puts its unfinished runs back, those that were running are run
-    again one at a time, and one whose worker dies alone is recorded ERROR naming it."""
+    """This invocation's runs on an executor, with the death of a worker told apart: a
+    broken local pool, or Dask giving up on runs whose workers died (``KilledWorker``: also
+    a run only queued on a worker that another run killed), puts those runs back; those that
+    had started are run again one at a time, and one whose worker dies alone is recorded
+    ERROR naming it."""
 
     def __init__(self, options: CampaignOptions, out: Path, env: dict[str, str], state: CampaignProgress,
                  records: dict[str, dict[str, Any]], progress: Callable[[CampaignProgress], None] | None):
@@ -110,7 +112,7 @@ class _Execution:
             self.progress(self.state)
 
     def attempt(self, batch: list[PlannedRun], workers: int) -> list[PlannedRun]:
-        """Run ``batch``; the runs left unfinished by a broken pool are returned."""
+        """Run ``batch``; the runs left unfinished by a dead worker are returned."""
         unfinished: list[PlannedRun] = []
         with open_executor(self.options.scheduler, workers, self.env) as ex:
             futures = [ex.submit(guarded_run, run, str(self.out)) for run in batch]
@@ -120,15 +122,14 @@ class _Execution:
                 try:
                     rec = fut.result()
                 except Exception as exc:
-                    if pool_broken(exc):
+                    if pool_broken(exc) or worker_killed(exc):  # a worker died: this run, or beside it?
                         unfinished.append(run)
                         continue
-                    if not worker_killed(exc):  # the run could not be sent or its record written
-                        self.state.lost.append(f"{run.label}: {type(exc).__name__}: {one_line(exc)}")
-                        if self.progress:
-                            self.progress(self.state)
-                        continue
-                    rec = death_record(run, self.out, f"Dask gave up on it: {one_line(exc)}")
+                    # the run could not be sent or its record written
+                    self.state.lost.append(f"{run.label}: {type(exc).__name__}: {one_line(exc)}")
+                    if self.progress:
+                        self.progress(self.state)
+                    continue
                 self._done(run, rec)
         return unfinished
 
