@@ -62,7 +62,18 @@ class CodecError(BenchError):
 
 
 class DutError(BenchError):
-    """The estimator under test crashed, hung, never started or misbehaved on the link."""
+    """The estimator under test crashed, hung, never started or misbehaved on the link.
+
+    ``certain`` (the default) says the failure is the DUT's: the run ends ``dut_failed`` and
+    is judged FAIL. ``certain=False`` is for an ending the bench cannot pin on the DUT (a
+    SIGKILL the bench did not send, which the kernel's OOM killer or an operator may have
+    sent; a ``MemoryError`` in an estimator sharing the bench's process): the run ends
+    ``dut_error``, judged ERROR, and the message says why the bench cannot tell.
+    """
+
+    def __init__(self, message: str, *, certain: bool = True):
+        self.certain = certain
+        super().__init__(message)
 
 
 class RecordingError(BenchError):

@@ -1,11 +1,12 @@
 """Judging: criteria applied to recordings, runs combined into a case verdict.
 
 :func:`score_recording` judges one recording against its test case (the one attached to
-the recording unless another is given): integrity first (a run that did not complete --
-bench-side failures and ``dut_error`` endings alike -- makes every criterion ERROR with the
-reason; a batch DUT's ``dut_failed`` ending, :data:`bench.scoring.integrity.DUT_STATUSES`,
-makes what it leaves unmeasurable FAIL with the reason; a failed output-integrity
-criterion makes what the DUT's output leaves unmeasurable FAIL), then every criterion of the
+the recording unless another is given): integrity first (a run the bench could not finish
+-- its own failures, and ``dut_error``, a DUT ending it cannot pin on the DUT -- makes every
+criterion ERROR with the reason; a DUT's failure, the ``dut_failed`` ending of any DUT kind,
+:data:`bench.scoring.integrity.DUT_STATUSES`, makes the run FAIL and what it leaves
+unmeasurable FAIL with the reason; a failed output-integrity criterion makes what the DUT's
+output leaves unmeasurable FAIL), then every criterion of the
 run's variant from the recording alone -- the case's own criteria and the default output
 integrity criteria (:mod:`bench.acceptance.integrity_criteria`) it was loaded with.
 :func:`judge_case` combines the runs of a case (variants, Monte Carlo seeds, variant

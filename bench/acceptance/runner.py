@@ -16,8 +16,9 @@ A runner implements::
   DUT output, faults, segments, bad frames, timing, commands, ``run_start`` (with
   :func:`run_start_metadata`) and ``run_end``, and the case file attached as
   ``case/<file>`` (:func:`case_attachments`) -- and closes it even when the run fails,
-  with the ``run_end`` status saying why (``dut_error`` for a DUT failure, ``error``,
-  ``timing_budget``, ``link_lost``... for a bench failure);
+  with the ``run_end`` status saying why (``dut_failed`` for a DUT failure, judged FAIL;
+  ``error``, ``timing_budget``, ``link_lost``... for a bench failure and ``dut_error`` for a
+  DUT ending the runner cannot pin on the DUT, judged ERROR);
 * it raises only when it could not produce a recording at all (a
   :class:`~bench.errors.ConfigError` for a case it cannot run as written, another
   :class:`~bench.errors.BenchError` otherwise); the run is then ERROR;

@@ -67,7 +67,7 @@ ERROR_KINDS = (
     "segment_drift",
 )
 OUTPUT_KINDS = ("drop", "drop_every", "late", "jitter", "invalid", "bad_frames", *CORRUPTIONS)
-END_STATUSES = ("complete", "error", "interrupted", "dut_error", "timing_budget", "link_lost")
+END_STATUSES = ("complete", "error", "interrupted", "dut_failed", "dut_error", "timing_budget", "link_lost")
 
 
 @dataclass(frozen=True)

@@ -97,6 +97,7 @@ def _run(args: argparse.Namespace) -> int:
     from bench.run.engine import execute
     from bench.run.replay import RecordingReplay
     from bench.run.spec import ClockSpec, DutSpec, LinkSpec
+    from bench.scoring.integrity import DUT_STATUSES
     from bench.sensors.suite import fault_schedule
     from bench.textsafe import for_terminal
 
@@ -158,6 +159,8 @@ def _run(args: argparse.Namespace) -> int:
                        + f", {result.bench_s:.1f} s of bench time in {result.elapsed_s:.1f} s"))
     if result.timing is not None:
         print(f"  timing: {result.timing.text()}", file=sys.stderr)
+    if result.status in DUT_STATUSES:
+        return 1  # the DUT failed (docs/scoring.md, "Verdicts")
     if not result.ok:
         return 3
     source = getattr(provider, "provenance", {})

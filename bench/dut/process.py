@@ -33,7 +33,8 @@ from pathlib import Path
 
 from bench.errors import ConfigError, DutError
 
-__all__ = ["DutProcess", "LogLine", "fill_placeholders", "uses_placeholder", "PLACEHOLDERS"]
+__all__ = ["DutProcess", "LogLine", "fill_placeholders", "uses_placeholder", "PLACEHOLDERS", "describe_exit",
+           "exit_error", "exit_is_certain", "OUTSIDE_KILL"]
 
 PLACEHOLDERS = ("can_interface", "can_channel", "can_port", "imu_port", "gnss_port", "config", "python")
 _MAX_LINE = 64 * 1024
@@ -196,7 +197,7 @@ class DutProcess:
         """Raise :class:`DutError` naming the exit status if the process has ended."""
         code = self.poll()
         if code is not None:
-            raise DutError(f"the DUT process exited {describe_exit(code)}")
+            raise exit_error(code, f"the DUT process exited {describe_exit(code)}")
 
     def close(self) -> int | None:
         """SIGTERM the process group, wait up to the shutdown timeout for the leader, then
@@ -268,6 +269,25 @@ def _peek_exit(p: subprocess.Popen) -> int | None:
     if info.si_code == os.CLD_EXITED:
         return info.si_status
     return -info.si_status
+
+
+#: Why a DUT process killed by SIGKILL mid-run is not pinned on the DUT (the run ends
+#: ``dut_error``, ERROR: :class:`~bench.errors.DutError` ``certain=False``).
+OUTSIDE_KILL = (" (a SIGKILL the bench did not send: the kernel's OOM killer or an operator; the bench cannot "
+                "tell whether the DUT or the machine failed)")
+
+
+def exit_is_certain(code: int) -> bool:
+    """Whether an exit status the DUT reached by itself is surely the DUT's failure: any
+    but a SIGKILL, which only the bench (at shutdown), the OOM killer or an operator sends."""
+    return code != -signal.SIGKILL
+
+
+def exit_error(code: int, what: str) -> DutError:
+    """The :class:`DutError` of a DUT process that exited with ``code`` mid-run; ``what``
+    is the message before the reason of an unclear kill."""
+    certain = exit_is_certain(code)
+    return DutError(what + ("" if certain else OUTSIDE_KILL), certain=certain)
 
 
 def describe_exit(code: int) -> str:

@@ -10,13 +10,19 @@ that fails, is interrupted or is killed between chunks still leaves a readable f
 ``run_end`` record says how it ended:
 
 ``complete``        the run went to the end;
-``dut_error``       the DUT crashed, hung, never started, flooded the bus, or raised;
+``dut_failed``      the DUT failed: it crashed or exited, hung past the timeout, never
+                    started, stopped reading its lines, flooded the bus, or (in process)
+                    raised, hung or returned what no NAV frame carries -- judged FAIL;
+``dut_error``       the DUT ended in a way the bench cannot pin on it: killed by a SIGKILL
+                    the bench did not send (the OOM killer, an operator), a MemoryError in
+                    process (:class:`~bench.errors.DutError` ``certain=False``);
 ``link_lost``       a link failed;
 ``timing_budget``   a real-time run missed its lateness budget;
 ``interrupted``     Ctrl-C or SIGTERM;
 ``error``           the bench failed (the reason says how).
 
-All but ``complete`` make the verdict ERROR: the bench could not judge the DUT.
+``complete`` is judged on the recording; ``dut_failed`` makes the verdict FAIL with the
+reason; every other ending makes it ERROR: the bench could not judge the DUT.
 
 A recording that cannot be written (a full disk, a file size limit) ends the run with
 ``error``: the file keeps what reached it (an unfinished recording) and, once the DUT

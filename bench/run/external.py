@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.clock.pacing import Clock
-from bench.dut.process import DutProcess, LogLine, describe_exit, fill_placeholders, uses_placeholder
+from bench.dut.process import DutProcess, LogLine, describe_exit, exit_error, fill_placeholders, uses_placeholder
 from bench.errors import ConfigError, DutError, LinkError
 from bench.frames import CanBatch, SerialBatch
 from bench.run.realtime_exchange import RealtimeExchange
@@ -179,7 +179,7 @@ class ExternalDut(RealtimeExchange):
         self.process.wait_output(1.0)  # the lines it wrote before it died
         self._flush_lines()
         when = when or f"at bench time {self.now_ns / 1e9:.3f} s"
-        raise DutError(f"the DUT process exited {describe_exit(code)} {when}" + self._tail())
+        raise exit_error(code, f"the DUT process exited {describe_exit(code)} {when}" + self._tail())
 
     def _tail(self, n: int = 5) -> str:
         """`` (last output: ...)`` with the DUT's last ``n`` non-empty lines, or nothing; their

@@ -7,11 +7,16 @@ into NAV_SOLUTION / NAV_QUALITY frames as the ICD puts them on the bus, stamped 
 step time and numbered (:mod:`bench.dut.epochs`), so the bench receives and records them
 exactly as from an external DUT.
 
-The estimator failing ends the run as a :class:`~bench.errors.DutError` whose reason says
-how: it raised (its traceback written to the DUT's log as an external DUT's stderr would
-be), returned an epoch later than the step time, returned records of another layout, or
-values no NAV frame can carry. The frames of the steps before stay in :attr:`partial`;
-the earliest failure is the one reported.
+The estimator failing ends the run as a :class:`~bench.errors.DutError` (``dut_failed``,
+FAIL) whose reason says how: it raised (its traceback written to the DUT's log as an
+external DUT's stderr would be), did not return from a step within the step timeout
+(``[clock] timeout``, as an external DUT's DUT_READY: :mod:`bench.run.watchdog` stops it),
+flooded (more epochs in one step than an external DUT may send frames: ``[dut]
+flood_frames_per_s`` times the step, at least 100), returned an epoch later than the step
+time, returned records of another layout, or values no NAV frame can carry. A
+``MemoryError`` is the one failure the bench cannot pin on the estimator, which shares its
+process and memory: it ends the run ``dut_error`` (ERROR), saying so. The frames of the
+steps before stay in :attr:`partial`; the earliest failure is the one reported.
 
 What the estimator writes on standard output or error when it is closed at the end of
 the run (a summary, diagnostics) goes to the DUT's log as an external DUT's lines do.
@@ -34,6 +39,7 @@ from bench.dut.process import LogLine
 from bench.errors import CodecError, DutError
 from bench.frames import CanBatch
 from bench.run.traffic import Traffic
+from bench.run.watchdog import StepTimeout, StepWatchdog
 from bench.wire.can import CanEncoder
 
 __all__ = ["InProcessDut", "traceback_lines"]
@@ -60,6 +66,13 @@ class InProcessDut:
     on_lines:
         Where the estimator's traceback goes when it raises, ``(lines, bench time)`` (the
         run's ``/dut/log``).
+    step_timeout_s:
+        A step that has not returned after this long is stopped and ends the run (None: no
+        watchdog).
+    step_ns, flood_frames_per_s:
+        The scheduler step and the frame rate beyond which a DUT floods: more epochs
+        (solutions and qualities) in one step than ``flood_frames_per_s`` times the step
+        (at least 100) end the run.
     """
 
     def __init__(
@@ -67,8 +80,15 @@ class InProcessDut:
         estimator: Estimator,
         epoch_utc_ns: int | None = None,
         on_lines: Callable[[list[LogLine], int], None] | None = None,
+        *,
+        step_timeout_s: float | None = None,
+        step_ns: int = 10_000_000,
+        flood_frames_per_s: int = 20_000,
     ):
         self.estimator = estimator
+        self.step_timeout_s = step_timeout_s
+        self.flood = max(100, int(flood_frames_per_s * step_ns * 1e-9))
+        self.watchdog = StepWatchdog(step_timeout_s).__enter__() if step_timeout_s is not None else None
         self.decoder = InputDecoder(epoch_utc_ns)
         self.encoder = CanEncoder(wire_range=True)  # as a DUT puts it on the bus
         self.numbering = EpochNumbering()
@@ -88,15 +108,39 @@ class InProcessDut:
         s_rx: list[tuple[int, int]] = []
         q_rx: list[tuple[int, int]] = []
         step = self.estimator.step
+        dog = self.watchdog
+        name = self.estimator.name
         for inputs in self.decoder.step_inputs(decoded, step_times, start_ns):
             self.last_t_ns = inputs.t_ns
             try:
-                out = step(inputs)
+                if dog is None:
+                    out = step(inputs)
+                else:
+                    token = dog.arm()
+                    try:
+                        out = step(inputs)
+                    finally:
+                        dog.disarm(token)
+            except StepTimeout as exc:  # it hangs: stopped by the watchdog
+                self.partial = self._stacked(sols, s_rx, quals, q_rx)
+                self._log_traceback(exc, inputs.t_ns)
+                raise DutError(
+                    f"the estimator {name!r} did not return from its step at bench time {inputs.t_ns / 1e9:.3f} s "
+                    f"within the step timeout of {self.step_timeout_s:g} s (it hangs; [clock] timeout)"
+                ) from None
+            except MemoryError as exc:  # in the bench's own process: whose memory ran out cannot be told
+                self.partial = self._stacked(sols, s_rx, quals, q_rx)
+                self._log_traceback(exc, inputs.t_ns)
+                raise DutError(
+                    f"the estimator {name!r} raised MemoryError at bench time {inputs.t_ns / 1e9:.3f} s (it runs "
+                    "in the bench's process, so the bench cannot tell whether the estimator or the bench used the "
+                    "memory up; run it as an external DUT to tell)", certain=False
+                ) from exc
             except Exception as exc:  # the estimator under test failed: that ends the run
                 self.partial = self._stacked(sols, s_rx, quals, q_rx)  # an earlier failure is raised here
                 self._log_traceback(exc, inputs.t_ns)
                 raise DutError(
-                    f"the estimator {self.estimator.name!r} raised at bench time {inputs.t_ns / 1e9:.3f} "
+                    f"the estimator {name!r} raised at bench time {inputs.t_ns / 1e9:.3f} "
                     f"s: {type(exc).__name__}: {exc}"
                 ) from exc
             if not isinstance(out, EstimatorOutput):
@@ -104,6 +148,13 @@ class InProcessDut:
                 raise DutError(
                     f"the estimator {self.estimator.name!r} returned a {type(out).__name__} at bench time "
                     f"{inputs.t_ns / 1e9:.3f} s, not an EstimatorOutput"
+                )
+            n = len(out.solutions) + len(out.qualities)
+            if n > self.flood:
+                self.partial = self._stacked(sols, s_rx, quals, q_rx)
+                raise DutError(
+                    f"the estimator {name!r} floods: {n} epochs (solutions and qualities) in the step at bench time "
+                    f"{inputs.t_ns / 1e9:.3f} s (limit {self.flood}, as an external DUT's frames)"
                 )
             if len(out.solutions):
                 sols.append(out.solutions)
@@ -189,7 +240,10 @@ class InProcessDut:
         return lo
 
     def close(self) -> None:
-        """End of the run: the estimator's ``close``, its output lines on the DUT's log."""
+        """End of the run: the watchdog stopped, the estimator's ``close``, its output lines
+        on the DUT's log."""
+        if self.watchdog is not None:
+            self.watchdog.close()
         out, err = io.StringIO(), io.StringIO()
         try:
             with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):

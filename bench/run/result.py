@@ -39,7 +39,7 @@ def status_of(exc: BaseException) -> str:
     if isinstance(exc, KeyboardInterrupt):
         return "interrupted"
     if isinstance(exc, DutError):
-        return "dut_error"
+        return "dut_failed" if exc.certain else "dut_error"
     if isinstance(exc, LinkError):
         return "link_lost"
     if isinstance(exc, TimingBudgetError):

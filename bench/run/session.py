@@ -124,7 +124,9 @@ class RunSession:
             raise self.start_error
         if dut.kind == "in_process":
             assert self.estimator is not None
-            self.dut_in = InProcessDut(self.estimator, provider.epoch_ns, on_lines=out.log)
+            self.dut_in = InProcessDut(self.estimator, provider.epoch_ns, on_lines=out.log,
+                                       step_timeout_s=self.clock_spec.timeout_s, step_ns=self.step_ns,
+                                       flood_frames_per_s=dut.flood_frames_per_s)
         else:
             self.dut_ext = ExternalDut(
                 dut,

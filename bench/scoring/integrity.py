@@ -1,17 +1,20 @@
 """Can the bench judge this run at all? Bench-side failures, kept apart from the DUT's.
 
-The recording says how the run ended (``run_end`` metadata: ``complete``, ``error``,
-``interrupted``, ``dut_error``, ``timing_budget``, ``link_lost``...) and, in real-time
-runs, how late the bench was at every step (``/bench/timing``). From these:
+The recording says how the run ended (``run_end`` metadata: ``complete``, ``dut_failed``,
+``dut_error``, ``error``, ``interrupted``, ``timing_budget``, ``link_lost``...) and, in
+real-time runs, how late the bench was at every step (``/bench/timing``). From these:
 
+* **DUT issues** make it FAIL: ``dut_failed``, the DUT failed (:data:`DUT_STATUSES`): it
+  crashed or exited, hung past its timeout, never started, flooded the bus, gave output
+  the codec refuses -- in process, external, hardware or batch alike;
 * **bench issues** make the run's verdict ERROR: an unfinished recording, a damaged one
   (a stretch of it could not be read), no ``run_end``, an end status other than
-  ``complete``/``dut_error``, steps later than the timing budget, no truth, no DUT output
-  at all, a replay of a source recording that was unfinished, damaged, ended early or was
-  itself such a replay (:mod:`bench.record.provenance`) unless the replay was run with
-  ``--accept-damaged-source`` (then a **note** says so);
-* **DUT issues** make it FAIL: ``dut_failed`` (a batch DUT's command failed, timed out or
-  wrote no or a malformed result: :data:`DUT_STATUSES`).
+  ``complete``/``dut_failed`` -- the bench's own failures, and ``dut_error``, a DUT ending
+  the bench cannot pin on the DUT (a SIGKILL it did not send, a ``MemoryError`` in the
+  bench's own process; the reason says why) --, steps later than the timing budget, no
+  truth, no DUT output at all, a replay of a source recording that was unfinished, damaged,
+  ended early or was itself such a replay (:mod:`bench.record.provenance`) unless the
+  replay was run with ``--accept-damaged-source`` (then a **note** says so).
 """
 
 from __future__ import annotations
@@ -23,15 +26,16 @@ import numpy as np
 from bench.record.provenance import source_issues
 from bench.scoring.data import NAV_SOLUTION, TIMING, TRUTH, RunData
 
-__all__ = ["Integrity", "check_integrity", "DUT_STATUSES", "OK_STATUSES"]
+__all__ = ["Integrity", "check_integrity", "DUT_STATUSES", "OK_STATUSES", "UNCLEAR_STATUS"]
 
 OK_STATUSES = ("complete",)
-#: Run endings that are the DUT's failure to be judged rather than a measured miss: only
-#: ``dut_failed``, a batch DUT (bench.exchange.batch) whose command failed, timed out or
-#: wrote no or a malformed result -- the bench had done its part. A live DUT that crashes,
-#: hangs, never starts or floods the bus ends the run ``dut_error``, ERROR (ICD 6, issue
-#: 5): the bench could not judge it; the reason says what the DUT did.
+#: Run endings that are the DUT's failure (FAIL, the reason in the DUT issues): the DUT
+#: crashed, exited, hung past its timeout, never started, flooded the bus or gave output
+#: the codec refuses (in process, external, hardware), or a batch DUT's command failed,
+#: timed out or wrote no or a malformed result -- the bench had done its part.
 DUT_STATUSES: tuple[str, ...] = ("dut_failed",)
+#: The DUT ended the run in a way the bench cannot pin on it (ERROR, the reason says why).
+UNCLEAR_STATUS = "dut_error"
 
 
 @dataclass
@@ -61,6 +65,9 @@ def check_integrity(run: RunData, budget_ns: int | None = None) -> Integrity:
         reason = run.run_end.get("reason", "")
         if status in DUT_STATUSES:
             out.dut.append(f"run ended with {status}" + (f": {reason}" if reason else ""))
+        elif status == UNCLEAR_STATUS:
+            out.bench.append(f"run ended with status {status!r}, a DUT ending the bench cannot tell from a failure "
+                             "of its own" + (f": {reason}" if reason else ""))
         elif status not in OK_STATUSES:
             out.bench.append(f"run ended with status {status!r}" + (f": {reason}" if reason else ""))
     issues, notes = source_issues(run.run_start)

@@ -113,16 +113,17 @@ def test_a_real_dut_whose_output_goes_bad_fails_on_the_named_check(tmp_path: Pat
 
 
 def test_an_in_process_dut_whose_output_no_frame_can_carry_keeps_what_it_delivered(tmp_path: Path):
-    """NaN in an estimator's output: the run ends dut_error (the DUT failed to put its
+    """NaN in an estimator's output: the run ends dut_failed, FAIL (the DUT failed to put its
     epochs on the bus), and the 6 s it delivered before are in the recording."""
     from bench.record.mcap_io import RecordingReader
 
     (tmp_path / "drive.toml").write_text(DRIVE)
     (tmp_path / "case.toml").write_text(CASE.format(corrupt="nan"))
     result = run_case(load_case(tmp_path / "case.toml"), SuiteOptions(tmp_path / "out"))
-    assert result.verdict is Verdict.ERROR
+    assert result.verdict is Verdict.FAIL
+    assert any("does not fit NAV frames" in i for i in result.runs[0].dut_issues), result.runs[0].dut_issues
     rec = RecordingReader(result.runs[0].recording)
-    assert rec.metadata()["run_end"]["status"] == "dut_error"
+    assert rec.metadata()["run_end"]["status"] == "dut_failed"
     assert "does not fit NAV frames" in rec.metadata()["run_end"]["reason"]
     nav = rec.read_columnar("/dut/nav_solution")
     assert len(nav) and nav["t_ns"].max() == FROM_NS - 10_000_000  # every epoch before the first NaN

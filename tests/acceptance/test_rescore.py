@@ -182,10 +182,20 @@ def test_bench_error_at_run_end_is_error_not_fail(make_case, drive_dir):
 
 
 def test_dut_error_at_run_end_is_error(make_case, drive_dir):
-    # a DUT that crashed, hung or flooded the bus could not be judged: ERROR, with the reason
+    # a DUT ending the bench cannot pin on the DUT (a SIGKILL it did not send): ERROR, with the reason
     text = base_case().replace('latency = "3 ms"', 'latency = "3 ms"\nbench_status = "dut_error"')
     result = run_case(load_case(make_case(text)), SuiteOptions(drive_dir / "out"))
     assert result.verdict is Verdict.ERROR and "dut_error" in result.runs[0].bench_issues[0]
+    assert "cannot tell" in result.runs[0].bench_issues[0]
+
+
+def test_dut_failed_at_run_end_is_fail_even_where_the_numbers_pass(make_case, drive_dir):
+    # a DUT that crashed, hung or flooded the bus failed its run: FAIL with the reason, never ERROR
+    text = base_case().replace('latency = "3 ms"', 'latency = "3 ms"\nbench_status = "dut_failed"')
+    result = run_case(load_case(make_case(text)), SuiteOptions(drive_dir / "out"))
+    assert result.verdict is Verdict.FAIL and not result.runs[0].bench_issues
+    assert "dut_failed" in result.runs[0].dut_issues[0]
+    assert result.criteria[0].verdict is Verdict.PASS  # what it delivered was measured: the run fails, not it
 
 
 def test_results_json_is_strict_json(live):

@@ -31,9 +31,9 @@ def test_replay_and_info_show_a_dut_exception_with_its_control_characters_visibl
                       'start = "80 s"\nend = "81 s"\nparams = { skip = 2 }\n')  # replay re-encodes the samples
     assert main(["synth", str(SHORT), "-o", str(rec), "-q"]) == 0
     capsys.readouterr()
-    assert main(["replay", str(rec), "-o", str(out), "--estimator", "hostile_text", "--faults", str(faults), "-q"]) == 3
+    assert main(["replay", str(rec), "-o", str(out), "--estimator", "hostile_text", "--faults", str(faults), "-q"]) == 1
     shown = capsys.readouterr()
-    assert "dut_error" in shown.out and "\\x1b]0;pwned\\x07\\x1b[2J filter" in shown.out
+    assert "dut_failed" in shown.out and "\\x1b]0;pwned\\x07\\x1b[2J filter" in shown.out
     assert not RAW_CONTROL.search(shown.out + shown.err)
     assert main(["info", str(out)]) == 0
     shown = capsys.readouterr()

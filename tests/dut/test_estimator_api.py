@@ -361,7 +361,7 @@ def test_a_module_whose_own_import_fails_is_the_estimator_failing_to_start(tmp_p
         create_estimator("apimod_broken:Mine", {}, search=[tmp_path])
     spec = _spec(tmp_path / "broken.mcap", DutSpec("in_process", name="apimod_broken:Mine", cwd=tmp_path))
     res = run(spec)
-    assert res.status == "dut_error" and "failed to start: ModuleNotFoundError" in res.reason
+    assert res.status == "dut_failed" and "failed to start: ModuleNotFoundError" in res.reason
 
 
 def test_a_module_class_name_runs_in_process_from_the_case_folder(tmp_path):

@@ -1,9 +1,11 @@
-"""An estimator that fails ends the run as a DUT error that says how, in process and
+"""An estimator that fails ends the run as the DUT's failure that says how, in process and
 through the harness: an epoch later than the step time (named by its time of validity
 and the step), an exception (its traceback on /dut/log, in the recording's metadata and
 in the crash log beside it), something that is not an EstimatorOutput. The run still
-finishes its recording with the epochs of the steps before; the verdict is ERROR, as for
-every ``dut_error`` run (a crashing external DUT too)."""
+finishes its recording with the epochs of the steps before; the run ends ``dut_failed``
+and the verdict is FAIL with the reason, as for every DUT failure (a crashing external
+DUT too); a MemoryError in process, which the bench cannot pin on the estimator, is
+``dut_error``, ERROR."""
 
 from __future__ import annotations
 
@@ -113,13 +115,15 @@ def _case(tmp_path: Path, how: str) -> Path:
 
 
 @pytest.mark.parametrize("how", list(REASONS))
-def test_an_in_process_estimator_that_fails_ends_the_run_as_a_dut_error_saying_how(tmp_path, how):
+def test_an_in_process_estimator_that_fails_ends_the_run_as_its_failure_saying_how(tmp_path, how):
     result = run_case(load_case(_case(tmp_path, how)), SuiteOptions(tmp_path / "out"))
-    assert result.verdict is Verdict.ERROR  # as every dut_error run: the bench could not judge the DUT
+    assert result.verdict is Verdict.FAIL  # the DUT failed: FAIL, never ERROR
+    assert any(REASONS[how] in issue for issue in result.runs[0].dut_issues), result.runs[0].dut_issues
+    assert not result.runs[0].bench_issues
     rec = RecordingReader(result.runs[0].recording)
     assert rec.complete
     end = rec.metadata()["run_end"]
-    assert end["status"] == "dut_error" and end["reason"].startswith(REASONS[how]), end
+    assert end["status"] == "dut_failed" and end["reason"].startswith(REASONS[how]), end
     sol = rec.read_columnar("/dut/nav_solution")
     assert sol["t_ns"].max() == AT_NS - 10_000_000 and len(sol) == 100  # every epoch of the steps before
     q = rec.read_columnar("/dut/nav_quality")
@@ -160,7 +164,7 @@ def test_an_estimator_failing_to_start_leaves_its_traceback_on_the_dut_log(tmp_p
     spec = RunSpec(scenario=load_scenario(SHORT), tables={"imu": {"grade": "navigation"}}, schedule=FaultSchedule(),
                    dut=DutSpec("in_process", name=_BadStart.name), out=tmp_path / "s.mcap", duration_ns=AT_NS)
     res = run(spec)
-    assert res.status == "dut_error" and "failed to start: KeyError: 'lever_arm'" in res.reason
+    assert res.status == "dut_failed" and "failed to start: KeyError: 'lever_arm'" in res.reason
     texts = [d["text"] for _, d in RecordingReader(res.path).iter_json("/dut/log") if d["stream"] == "stderr"]
     assert texts[-1] == "KeyError: 'lever_arm'" and any("in configure" in t for t in texts)
     assert "in configure" in (tmp_path / LOG_NAME).read_text()
@@ -189,7 +193,7 @@ def test_an_estimator_returning_a_late_epoch_through_the_harness_ends_the_run_wi
                    links=LinkSpec(can={"interface": "udp_multicast", "channel": "239.74.164.71", "port": port}),
                    clock=ClockSpec(timeout_s=60.0))
     res = netns.call_in(ns, lambda: run(spec))
-    assert res.status == "dut_error"
+    assert res.status == "dut_failed"
     assert "the DUT process exited with code 1" in res.reason
     assert ("harness: the estimator 'misbehave' returned an epoch with time of validity 1.010000 s at the step "
             "1.000000 s: later than the step time") in res.reason

@@ -87,12 +87,12 @@ def test_a_dut_that_lags_gets_every_byte_in_order_and_the_bench_never_waits_on_i
     assert np.all(np.diff(timing["t_ns"]) > 0)  # the emissions went on, each measured
 
 
-def test_a_dut_that_never_opens_its_lines_is_a_dut_error_before_the_clock_starts(ns, tmp_path):
+def test_a_dut_that_never_opens_its_lines_is_a_dut_failure_before_the_clock_starts(ns, tmp_path):
     idle = "import signal, time; signal.signal(signal.SIGTERM, lambda *a: exit(0)); time.sleep(60)"
     cmd = f'{sys.executable} -c "{idle}"'
     spec = _spec(ns, tmp_path, 43482, cmd, {}, startup_s=1.0)
     res = netns.call_in(ns, lambda: run(spec))
-    assert res.status == "dut_error" and "did not open /dev/pts/" in res.reason, res.reason
+    assert res.status == "dut_failed" and "did not open /dev/pts/" in res.reason, res.reason
     assert "ICD 5" in res.reason
     assert RecordingReader(res.path).topics()["/bench/timing"].messages == 0  # nothing emitted
 

@@ -90,15 +90,15 @@ def _ended(path: Path) -> tuple[dict, dict]:
         ("crash_raise", 43413, "with code 1", "RuntimeError: filter diverged at 1.00 s"),
     ],
 )
-def test_a_dut_crashing_mid_run_ends_as_dut_error_with_its_exit_and_last_output(
+def test_a_dut_crashing_mid_run_ends_as_dut_failed_with_its_exit_and_last_output(
     ns, tmp_path, mode, port, exit_text, last_line
 ):
     res, pid_file = _external(ns, tmp_path, port, mode, at_s=1.0)
-    assert res.status == "dut_error"
+    assert res.status == "dut_failed"
     assert f"the DUT process exited {exit_text} at bench time 1.0" in res.reason
     assert last_line in res.reason  # the last output lines name the cause
     end, dut_exit = _ended(res.path)
-    assert end == {"status": "dut_error", "reason": res.reason}
+    assert end == {"status": "dut_failed", "reason": res.reason}
     assert dut_exit["exit"] == exit_text and dut_exit["ended"] == "exited by itself"
     logged = log_texts(res.path)
     assert any(stream == "stderr" and last_line in text for stream, text in logged)
@@ -119,7 +119,7 @@ def test_a_dut_crashing_in_a_real_time_run_ends_it_at_once(ns, tmp_path):
     spec.clock = ClockSpec(mode="realtime", speed=4.0)
     spec.window_ns = 60_000_000_000  # one window: its end is not when the crash is seen
     res = netns.call_in(ns, lambda: run(spec))
-    assert res.status == "dut_error"
+    assert res.status == "dut_failed"
     assert "the DUT process exited with code 3 at bench time" in res.reason and "gyro channel X" in res.reason
     # seen by the checks during the emission (every 100 ms of bench time), not at the end of
     # the window; how soon after the step depends on how fast the DUT process dies (at 4x
@@ -127,24 +127,24 @@ def test_a_dut_crashing_in_a_real_time_run_ends_it_at_once(ns, tmp_path):
     died = [float(t.split()[2]) for _, t in log_texts(res.path) if t.startswith("misbehave: step")]
     seen = float(res.reason.split("at bench time ")[1].split(" s")[0])
     assert len(died) == 1 and died[0] <= seen < 59.0
-    assert _ended(res.path)[0]["status"] == "dut_error"
+    assert _ended(res.path)[0]["status"] == "dut_failed"
     no_process_left(pid_file)
 
 
 # ---------------------------------------------------------------------------------- (b) hang
 @pytest.mark.slow
-def test_a_hanging_dut_ends_as_dut_error_after_the_lockstep_timeout(ns, tmp_path):
+def test_a_hanging_dut_ends_as_dut_failed_after_the_lockstep_timeout(ns, tmp_path):
     pid_file = tmp_path / "pids"
     dut = DutSpec("external", command=dut_command(ns, 43421), config={"mode": "hang", "at_s": 0.5,
                                                                       "pid_file": str(pid_file)},
                   startup_timeout_s=HANG_S, shutdown_timeout_s=0.5)
     # the lockstep timeout is what is tested; 5 s leaves the healthy steps before 0.5 s room on a loaded machine
     res = netns.call_in(ns, lambda: run(_spec(tmp_path / "hang.mcap", dut, port=43421, timeout_s=5.0)))
-    assert res.status == "dut_error"
+    assert res.status == "dut_failed"
     assert "no DUT_READY for bench time 0.500 s within 5 s" in res.reason
     assert "misbehave: hanging at 0.50 s" in res.reason
     end, dut_exit = _ended(res.path)
-    assert end["status"] == "dut_error"
+    assert end["status"] == "dut_failed"
     # it sleeps through SIGTERM (the harness only sets a flag), so it is killed
     assert dut_exit["terminated_in_time"] is False and dut_exit["exit"] == "on signal SIGKILL"
     assert ("stdout", "misbehave: hanging at 0.50 s") in log_texts(res.path)
@@ -153,25 +153,25 @@ def test_a_hanging_dut_ends_as_dut_error_after_the_lockstep_timeout(ns, tmp_path
 
 # ---------------------------------------------------------------------------------- (c) never starts
 @pytest.mark.slow
-def test_a_dut_exiting_at_start_up_ends_as_dut_error(ns, tmp_path):
+def test_a_dut_exiting_at_start_up_ends_as_dut_failed(ns, tmp_path):
     res, pid_file = _external(ns, tmp_path, 43431, "exit_at_once")
-    assert res.status == "dut_error"
+    assert res.status == "dut_failed"
     assert "the DUT process exited with code 2 during start-up, before answering BENCH_TIME(0 s)" in res.reason
     assert "cannot open the IMU device" in res.reason
     assert res.bench_s == 0.0
     end, dut_exit = _ended(res.path)
-    assert end["status"] == "dut_error" and dut_exit["exit_code"] == 2
+    assert end["status"] == "dut_failed" and dut_exit["exit_code"] == 2
     assert ("stderr", "misbehave: cannot open the IMU device: no such file") in log_texts(res.path)
     no_process_left(pid_file)
 
 
 @pytest.mark.slow
-def test_a_dut_that_never_answers_ends_as_dut_error_at_the_start_up_timeout(ns, tmp_path):
+def test_a_dut_that_never_answers_ends_as_dut_failed_at_the_start_up_timeout(ns, tmp_path):
     res, pid_file = _external(ns, tmp_path, 43432, "never_ready", startup_s=1.5)
-    assert res.status == "dut_error"
+    assert res.status == "dut_failed"
     assert "did not answer BENCH_TIME(0 s) with DUT_READY within 1.5 s of its start" in res.reason
     end, dut_exit = _ended(res.path)
-    assert end["status"] == "dut_error"
+    assert end["status"] == "dut_failed"
     # asleep before the harness installed its handler: SIGTERM's default action ends it
     assert dut_exit["exit"] == "on signal SIGTERM" and dut_exit["ended"] == "exited on SIGTERM"
     assert ("stdout", "misbehave: warming up the gyros ...") in log_texts(res.path)
@@ -181,22 +181,22 @@ def test_a_dut_that_never_answers_ends_as_dut_error_at_the_start_up_timeout(ns, 
 
 
 @pytest.mark.slow
-def test_a_dut_that_cannot_be_started_ends_as_dut_error(tmp_path):
+def test_a_dut_that_cannot_be_started_ends_as_dut_failed(tmp_path):
     dut = DutSpec("external", command="/nonexistent/dut --imu {imu_port}")
     res = run(_spec(tmp_path / "none.mcap", dut))
-    assert res.status == "dut_error" and "cannot start the DUT '/nonexistent/dut'" in res.reason
-    assert _ended(res.path)[0]["status"] == "dut_error"
+    assert res.status == "dut_failed" and "cannot start the DUT '/nonexistent/dut'" in res.reason
+    assert _ended(res.path)[0]["status"] == "dut_failed"
 
 
 # ---------------------------------------------------------------------------------- (d) flood
 @pytest.mark.slow
-def test_a_dut_flooding_the_bus_ends_as_dut_error(ns, tmp_path):
+def test_a_dut_flooding_the_bus_ends_as_dut_failed(ns, tmp_path):
     res, pid_file = _external(ns, tmp_path, 43441, "flood", at_s=0.5, flood_frames=1000)
-    assert res.status == "dut_error"
+    assert res.status == "dut_failed"
     assert "the DUT floods the bus" in res.reason and "(limit 200)" in res.reason
     assert "within the step ending at 0.500 s" in res.reason
     end, dut_exit = _ended(res.path)
-    assert end["status"] == "dut_error" and dut_exit["terminated_in_time"] is True
+    assert end["status"] == "dut_failed" and dut_exit["terminated_in_time"] is True
     rx = RecordingReader(res.path).read_columnar("/wire/can/rx")
     assert len(rx) > 200  # what it sent is recorded
     no_process_left(pid_file)
@@ -260,15 +260,15 @@ class _BadConfig(Estimator):
         return EstimatorOutput()
 
 
-def test_an_in_process_estimator_that_raises_ends_as_dut_error(tmp_path):
+def test_an_in_process_estimator_that_raises_ends_as_dut_failed(tmp_path):
     register_estimator("raises_at_1s", _Raises)
     res = run(_spec(tmp_path / "raises.mcap", DutSpec("in_process", name="raises_at_1s")))
-    assert res.status == "dut_error"
+    assert res.status == "dut_failed"
     assert "the estimator 'raises_at_1s' raised at bench time 1.000 s" in res.reason
     assert "ZeroDivisionError: innovation covariance is singular" in res.reason
     r = RecordingReader(res.path)
     md = r.metadata()
-    assert md["run_end"]["status"] == "dut_error"
+    assert md["run_end"]["status"] == "dut_failed"
     assert "raise ZeroDivisionError" in md["dut_traceback"]["traceback"]  # where in the estimator
     assert r.read_columnar("/dut/nav_solution")["t_ns"].max() == 990_000_000
     assert "solutions" in md["dut_output"]
@@ -280,13 +280,13 @@ def test_a_real_time_run_ending_in_error_gives_back_its_scheduling_and_the_garba
     spec = _spec(tmp_path / "rt.mcap", DutSpec("in_process", name="raises_at_1s"))
     spec.clock = ClockSpec(mode="realtime", speed=4.0)
     res = run(spec)
-    assert res.status == "dut_error" and "raised at bench time 1.000 s" in res.reason
+    assert res.status == "dut_failed" and "raised at bench time 1.000 s" in res.reason
     assert gc.isenabled() and os.sched_getscheduler(0) == policy
 
 
-def test_an_in_process_estimator_that_fails_to_configure_ends_as_dut_error(tmp_path):
+def test_an_in_process_estimator_that_fails_to_configure_ends_as_dut_failed(tmp_path):
     register_estimator("bad_config", _BadConfig)
     res = run(_spec(tmp_path / "bad.mcap", DutSpec("in_process", name="bad_config")))
-    assert res.status == "dut_error"
+    assert res.status == "dut_failed"
     assert "the estimator 'bad_config' failed to start: KeyError: 'lever_arm'" in res.reason
-    assert _ended(res.path)[0]["status"] == "dut_error"
+    assert _ended(res.path)[0]["status"] == "dut_failed"

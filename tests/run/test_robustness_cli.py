@@ -136,11 +136,12 @@ def test_bench_run_with_a_crashing_dut_exits_cleanly_with_the_reason(ns, tmp_pat
     assert "Traceback" not in stderr
     results = json.loads((tmp_path / "out" / "results.json").read_text())
     run_json = results["cases"][0]["runs"][0]
-    # the bench could not judge a DUT that crashed: ERROR, exit code 3 (issue 5, ICD 6)
-    assert (results["cases"][0]["verdict"], p.returncode) == ("ERROR", 3), (stdout, stderr)
-    assert any("gyro channel X saturated" in issue for issue in run_json["bench_issues"])  # the reason is reported
+    # a DUT that crashed during its acceptance run has failed it: FAIL, exit code 1 (issue 32)
+    assert (results["cases"][0]["verdict"], p.returncode) == ("FAIL", 1), (stdout, stderr)
+    assert any("gyro channel X saturated" in issue for issue in run_json["dut_issues"])  # the reason is reported
+    assert not run_json["bench_issues"]
     end = describe(str(_recording(tmp_path / "out")))["ended"]
-    assert end["status"] == "dut_error" and "exited with code 3" in end["reason"]
+    assert end["status"] == "dut_failed" and "exited with code 3" in end["reason"]
     no_process_left(pid_file)
 
 

@@ -170,9 +170,9 @@ def test_a_dut_sending_5000_remote_frames_per_step_trips_the_flood_limit(ns, tmp
     case = _case(tmp_path, case_id="RTR", config="{ remote_from_s = 2.5, remote = 5000 }", duration_s=3.0,
                  can_port=False)
     code, text, rec = _run(ns, case, tmp_path / "out")
-    assert code == 3, text  # ERROR, as for any flood
+    assert code == 1, text  # the DUT's FAIL, as for any flood
     end, link = _ended(rec)
-    assert end["status"] == "dut_error", end
+    assert end["status"] == "dut_failed", end
     assert "the DUT floods the bus: " in end["reason"] and "of them remote or error frames" in end["reason"]
     assert "within the step ending at 2.5" in end["reason"], end["reason"]
     assert link["remote"] > 200  # the step's limit (20000 frames/s x 10 ms)
