@@ -128,6 +128,12 @@ class InProcessDut:
                     f"the estimator {name!r} did not return from its step at bench time {inputs.t_ns / 1e9:.3f} s "
                     f"within the step timeout of {self.step_timeout_s:g} s (it hangs; [clock] timeout)"
                 ) from None
+            except SystemExit as exc:  # sys.exit() in the estimator: it ended itself, not the bench
+                self.partial = self._stacked(sols, s_rx, quals, q_rx)
+                self._log_traceback(exc, inputs.t_ns)
+                raise DutError(
+                    f"the estimator {name!r} called exit({exc.code!r}) at bench time {inputs.t_ns / 1e9:.3f} s"
+                ) from None
             except MemoryError as exc:  # in the bench's own process: whose memory ran out cannot be told
                 self.partial = self._stacked(sols, s_rx, quals, q_rx)
                 self._log_traceback(exc, inputs.t_ns)

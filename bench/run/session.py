@@ -229,7 +229,7 @@ def open_session(
             estimator.warm_up()  # kernels compiled before the run's clock starts, not in its first steps
         except BenchError:
             raise
-        except Exception as exc:  # the estimator under test failed to start: its run records that
+        except (Exception, SystemExit) as exc:  # the estimator under test failed to start: its run records that
             start_error = DutError(f"the estimator {dut.name!r} failed to start: {type(exc).__name__}: {exc}")
             start_error.__cause__ = exc
     clock = LockstepClock() if clock_spec.lockstep else RealTimeClock(clock_spec.speed)
