@@ -41,7 +41,7 @@ __all__ = [
 ]
 
 CLOCK_MODES = ("lockstep", "realtime")
-DUT_KINDS = ("synthetic", "in_process", "external", "batch")
+DUT_KINDS = ("synthetic", "in_process", "external", "hardware", "batch")
 
 
 @dataclass(frozen=True)

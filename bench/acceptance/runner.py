@@ -26,7 +26,8 @@ A runner implements::
 
 Runners register by DUT kind with :func:`register_runner`, or through the entry-point
 group ``bench.runners`` (name = DUT kind, value = a zero-argument factory). The bench
-ships the ``synthetic`` runner; the run engine provides ``in_process`` and ``external``.
+ships the ``synthetic`` runner; the run engine provides ``in_process``, ``external`` and
+``hardware``; the exchange package ``batch``.
 """
 
 from __future__ import annotations
@@ -77,6 +78,7 @@ _BUILTIN = {
     "synthetic": "bench.acceptance.synthetic:SyntheticRunner",
     "in_process": "bench.run.case_runner:EngineRunner",
     "external": "bench.run.case_runner:EngineRunner",
+    "hardware": "bench.run.case_runner:EngineRunner",
     "batch": "bench.exchange.batch:BatchRunner",
 }
 

@@ -286,6 +286,22 @@ def _links(t: Table | None) -> dict[str, dict[str, Any]]:
     return out
 
 
+def _hardware_links(t: Table, links: Mapping[str, Mapping[str, Any]], config: Any) -> None:
+    """A hardware DUT is on real links the bench does not make: its serial lines are device
+    paths (or pyserial URLs), never the ``pty`` pairs the bench makes for a process it starts,
+    its CAN interface is named, and it takes no ``[dut] config`` (nothing hands it over)."""
+    if config:
+        raise t.error("config", "a hardware DUT takes no [dut] config: the bench starts nothing to hand it to")
+    for name in ("imu", "gnss"):
+        port = links.get(name, {}).get("port")
+        if port is None or port == "pty":
+            raise t.error(f"links.{name}.port", "a hardware DUT needs the serial port its line is on (a device path "
+                          f"such as /dev/ttyUSB0, or a pyserial URL), found {port!r}")
+    if "interface" not in links.get("can", {}):
+        raise t.error("links.can.interface", "a hardware DUT needs its CAN interface named (socketcan, "
+                      "udp_multicast, pcan ...)")
+
+
 def _udp_keys(t: Table, vals: Mapping[str, Any]) -> None:
     """``port`` and ``interface_address`` are udp_multicast's; its channel is an IPv4
     multicast group and its interface address an IPv4 address."""
@@ -352,6 +368,8 @@ def _dut(t: Table, base: Path | None, check_files: bool) -> DutSpec:
                 )
     if kind != "external" and command:
         raise t.error("command", f"a command line is for an external DUT, not {kind!r}")
+    if kind == "hardware":
+        _hardware_links(t, links, config or config_file)
     if synthetic_raw is not None and kind != "synthetic":
         raise t.error("synthetic", f"[dut.synthetic] describes the synthetic stand-in, but kind is {kind!r}")
     synthetic = None

@@ -112,8 +112,9 @@ def _run(args: argparse.Namespace) -> int:
         from bench.run.case_runner import _links
 
         case = load_case(args.case)
-        if case.dut.kind not in ("in_process", "external"):
-            raise ConfigError(f"a replay needs an in_process or external DUT, the case has {case.dut.kind!r}",
+        if case.dut.kind not in ("in_process", "external", "hardware"):
+            raise ConfigError(f"a replay needs an in_process, external or hardware DUT, the case has "
+                              f"{case.dut.kind!r}",
                               file=case.file, key="dut.kind")
         dut = DutSpec(kind=case.dut.kind, name=case.dut.name, command=case.dut.command, config=dict(case.dut.config),
                       startup_timeout_s=case.dut.startup_timeout_s, shutdown_timeout_s=case.dut.shutdown_timeout_s)

@@ -13,8 +13,9 @@ For one run of a case (``[dut] kind = "batch"``, keys in :mod:`bench.acceptance.
 4. its result ``<work>/output/result.nav`` (and ``result_std.txt`` if written) is imported
    (:mod:`~bench.exchange.nav_import`) into the run's recording, which is judged as any.
 
-A command that cannot be started, exits non-zero, runs past its timeout, or writes no or a
-malformed result ends the run ``dut_failed`` with the reason (FAIL: the DUT misbehaved,
+A command that cannot be started, exits non-zero, runs past its timeout, writes no or a
+malformed result, or a result that floods (more epochs within a second of bench time than
+an external DUT may send frames: :func:`flooded`) ends the run ``dut_failed`` with the reason (FAIL: the DUT misbehaved,
 the bench did its part). A failure of the bench's own steps (synthesis, export, writing
 the recording) raises or ends the run ``error`` (ERROR).
 """
@@ -28,6 +29,8 @@ import signal
 import subprocess
 import sys
 from pathlib import Path
+
+import numpy as np
 
 from bench.acceptance.batch_spec import BatchSpec
 from bench.acceptance.case import TestCase
@@ -43,7 +46,7 @@ from bench.run.spec import RunSpec
 from bench.runinfo import parse_epoch
 from bench.scoring.data import COMMANDS
 
-__all__ = ["BatchRunner", "run_command", "CommandOutcome"]
+__all__ = ["BatchRunner", "run_command", "CommandOutcome", "flooded"]
 
 _WINDOW_NS = 10_000_000_000
 _MAX_LOG_LINES = 10_000
@@ -101,6 +104,20 @@ def run_command(argv: list[str], cwd: Path, timeout_s: float, work: Path) -> Com
     return CommandOutcome(None, lines)
 
 
+def flooded(solutions: np.ndarray, qualities: np.ndarray, per_s: int) -> str | None:
+    """Why a result floods, or None: more epochs (solutions and qualities) within one second
+    of bench time than an external DUT may send frames in one (``[dut]`` flood limit)."""
+    t = np.sort(np.concatenate([solutions["t_ns"], qualities["t_ns"]]).astype(np.int64))
+    if len(t) <= per_s:
+        return None
+    within = np.searchsorted(t, t + 1_000_000_000, side="left") - np.arange(len(t))
+    k = int(np.argmax(within))
+    if within[k] <= per_s:
+        return None
+    return (f"the batch DUT's result floods: {int(within[k])} epochs (solutions and qualities) within 1 s of bench "
+            f"time from {t[k] / 1e9:.3f} s (limit {per_s} a second, as for an external DUT's frames)")
+
+
 def _argv(spec: BatchSpec, values: dict[str, str]) -> list[str]:
     return [w.format_map(values) for w in spec.argv]
 
@@ -147,6 +164,8 @@ class BatchRunner:
                                              duration_ns=duration_ns)
                 except NavFileError as exc:
                     failure = f"the batch DUT's result is malformed: {exc}"
+                else:
+                    failure = flooded(result.solutions, result.qualities, run.dut.flood_frames_per_s)
         end = ("dut_failed", failure) if failure is not None else ("complete", "")
         write_output(inputs, out, result, end=end, log=outcome.lines, overwrite=True,
                      start_extra={"batch_command": json.dumps(argv), "batch_work": str(work)})

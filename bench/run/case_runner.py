@@ -1,4 +1,4 @@
-"""Test cases through the run engine: the ``in_process`` and ``external`` runners.
+"""Test cases through the run engine: the ``in_process``, ``external`` and ``hardware`` runners.
 
 Acceptance (:mod:`bench.acceptance`) asks a runner for one run of a case
 (:class:`bench.acceptance.runner.CaseRunner`); :class:`EngineRunner` builds the
@@ -100,7 +100,7 @@ def spec_from_case(case: TestCase, seed: int, out_dir: Path) -> RunSpec:
 
 
 class EngineRunner:
-    """The run engine as an acceptance runner (DUT kinds ``in_process`` and ``external``)."""
+    """The run engine as an acceptance runner (DUT kinds ``in_process``, ``external`` and ``hardware``)."""
 
     last: RunResult | None = None
 

@@ -272,8 +272,8 @@ def test_irregular_output_rate(tmp_path, traj, truth):
 # -- integrity ---------------------------------------------------------------------------
 @pytest.mark.parametrize(
     ("status", "bench", "dut"),
-    [("complete", 0, 0), ("dut_error", 1, 0), ("interrupted", 1, 0), ("timing_budget", 1, 0), ("link_lost", 1, 0), ("error", 1, 0),
-     ("dut_failed", 0, 1)],
+    [("complete", 0, 0), ("dut_error", 1, 0), ("interrupted", 1, 0), ("timing_budget", 1, 0), ("link_lost", 1, 0),
+     ("error", 1, 0), ("dut_failed", 0, 1)],
 )
 def test_run_end_status_splits_bench_and_dut(tmp_path, traj, truth, status, bench, dut):
     p = write_recording(tmp_path / "r.mcap", truth=truth, nav=nav_of(traj, _t()), status=status, reason="why")
