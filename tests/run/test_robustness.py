@@ -110,6 +110,18 @@ def test_a_dut_crashing_mid_run_ends_as_dut_failed_with_its_exit_and_last_output
 
 
 @pytest.mark.slow
+def test_a_dut_killed_by_a_sigkill_the_bench_did_not_send_is_an_ending_it_cannot_pin_on_the_dut(ns, tmp_path):
+    """The OOM killer or an operator: whose fault it was the bench cannot tell, so the run
+    ends dut_error (ERROR, "the bench cannot tell"), never FAIL, never a crash of the bench."""
+    res, pid_file = _external(ns, tmp_path, 43415, "sigkill", at_s=1.0)
+    assert res.status == "dut_error", (res.status, res.reason)
+    assert "the DUT process exited on signal SIGKILL at bench time 1.0" in res.reason
+    assert "the bench did not send" in res.reason and "cannot tell" in res.reason
+    assert _ended(res.path)[0] == {"status": "dut_error", "reason": res.reason}
+    no_process_left(pid_file)
+
+
+@pytest.mark.slow
 def test_a_dut_crashing_in_a_real_time_run_ends_it_at_once(ns, tmp_path):
     pid_file = tmp_path / "pids"
     dut = DutSpec("external", command=dut_command(ns, 43414), config={"mode": "crash_exit", "at_s": 1.0,

@@ -7,6 +7,7 @@ behaves (one NAV_SOLUTION per step) until bench time ``at_s`` and then does what
     crash_exit    print to stdout and stderr, then exit with code 3
     crash_abort   print, then abort (SIGABRT)
     crash_raise   raise RuntimeError (traceback on stderr, exit code 1)
+    sigkill       SIGKILL itself, as the kernel's OOM killer or an operator would
     late_epoch    return an epoch 10 ms later than the step time (the harness exits, code 1)
     hang          stop answering (sleep), still alive
     flood         send ``flood_frames`` NAV_SOLUTION frames per step from then on
@@ -34,8 +35,8 @@ from bench.dut import harness
 from bench.dut.estimator import DutInputs, Estimator, EstimatorOutput, register_estimator
 from bench.topics import NAV_SOLUTION_DTYPE
 
-MODES = ("crash_exit", "crash_abort", "crash_raise", "late_epoch", "hang", "flood", "exit_at_once", "never_ready",
-         "ignore_term", "slow")
+MODES = ("crash_exit", "crash_abort", "crash_raise", "sigkill", "late_epoch", "hang", "flood", "exit_at_once",
+         "never_ready", "ignore_term", "slow")
 
 
 def _say(text: str, stream=sys.stdout) -> None:
@@ -100,6 +101,8 @@ class Misbehave(Estimator):
                 os.abort()
             if self.mode == "crash_raise":
                 raise RuntimeError(f"filter diverged at {t / 1e9:.2f} s")
+            if self.mode == "sigkill":
+                os.kill(os.getpid(), signal.SIGKILL)
             if self.mode == "hang":
                 _say(f"misbehave: hanging at {t / 1e9:.2f} s")
                 time.sleep(600)
