@@ -47,6 +47,7 @@ __all__ = [
     "judge_case",
     "case_of",
     "NOT_IN_LOCKSTEP",
+    "unjudged_requirements",
 ]
 
 #: Metrics that do not apply to a lockstep run (verdict N/A): the DUT's output latency,
@@ -283,6 +284,28 @@ def _controls(c: Criterion, values: list[RunValue], runs: list[RunValue] | None 
     return Aggregate(nearest.value, worst_run.verdict, margin, worst_run.reason)
 
 
+def unjudged_requirements(case: TestCase, criteria: list[CriterionResult]) -> list[str]:
+    """Why the case cannot PASS for its coverage: each requirement it names that no
+    criterion judged -- none names it, or every result of the criteria that do is N/A (a
+    negative control judges the criterion, not the DUT: it does not count) -- and the case
+    does not waive (``[case] waived``)."""
+    out = []
+    for req in case.requirements:
+        if req in case.waived:
+            continue
+        mine = [cr for cr in criteria if req in cr.criterion.requirements and not cr.control]
+        if any(cr.verdict is not Verdict.NA for cr in mine):
+            continue
+        if not mine:
+            why = "no criterion of the case names it"
+        else:
+            ids = ", ".join(dict.fromkeys(cr.label for cr in mine))
+            reason = next((cr.aggregate.reason for cr in mine if cr.aggregate.reason), "")
+            why = f"its criteria ({ids}) were all N/A" + (f": {reason}" if reason else "")
+        out.append(f"requirement {req} not judged: {why} (judge it, or waive it in [case] waived with the reason)")
+    return out
+
+
 def judge_case(case: TestCase, runs: list[RunResult], errors: list[str] | None = None) -> CaseResult:
     """Combine the runs of a case into per-criterion and case verdicts."""
     out = CaseResult(case.id, case.title, case.file_name, case.requirements, Verdict.PASS, runs=runs, case=case)
@@ -309,6 +332,7 @@ def judge_case(case: TestCase, runs: list[RunResult], errors: list[str] | None =
             values = [r.raw[c.id] for r in runs if r.variant == v and c.id in r.raw]
             judged = [_control(c, rv) for rv in values]
             out.criteria.append(CriterionResult(c, v, _controls(c, values, judged), judged, control=True))
+    out.errors += unjudged_requirements(case, out.criteria) if runs else []
     verdicts = [cr.verdict for cr in out.criteria] + [r.verdict for r in runs]
     if out.errors or not runs:
         verdicts.append(Verdict.ERROR)

@@ -25,6 +25,7 @@ from bench.acceptance.case import (
 )
 from bench.acceptance.criteria_schema import criteria as parse_criteria
 from bench.acceptance.criteria_schema import scoring_settings
+from bench.acceptance.integrity_criteria import REQUIREMENT as INTEGRITY_REQUIREMENT
 from bench.acceptance.integrity_criteria import with_integrity
 from bench.acceptance.run_schema import clock_spec, run_spec
 from bench.config.files import expand_case_dir, read_toml, regular_file
@@ -64,6 +65,28 @@ _ID = r"[A-Za-z0-9][A-Za-z0-9_.-]*"
 _SENSOR_VALIDATORS: dict[str, Callable[[Mapping[str, Any], str, str], None]] = {}
 
 
+def _waivers(c: Table, requirements: list[str]) -> dict[str, str]:
+    """``[case] waived``: requirement id -> why the case names it but judges it nowhere
+    (each a requirement of the case, each reason written out)."""
+    w = c.table("waived")
+    if w is None:
+        return {}
+    out: dict[str, str] = {}
+    for req in list(w.data):
+        if req not in requirements:
+            raise w.error(req, f"waives {req!r}, which [case] requirements does not list "
+                               f"({', '.join(requirements)})")
+        if req == INTEGRITY_REQUIREMENT:
+            raise w.error(req, "the output-integrity checks are switched off one by one, with a reason, in "
+                               "[scoring.integrity]")
+        reason = w.str(req, required=True)
+        if not str(reason).strip():
+            raise w.error(req, "expected the reason the requirement is not judged here, found an empty string")
+        out[str(req)] = str(reason).strip()
+    w.finish()
+    return out
+
+
 def register_sensor_validator(sensor: str, fn: Callable[[Mapping[str, Any], str, str], None]) -> None:
     """Let a sensor model check its inline parameters in test cases (raise ConfigError)."""
     _SENSOR_VALIDATORS[sensor] = fn
@@ -86,6 +109,7 @@ def build_case(
     reference = c.str("reference", "")
     assumed = c.str_list("assumed")
     shortened = c.str("shortened", "")
+    waived = _waivers(c, requirements)
     c.finish()
 
     scenario = _scenario(top.table("scenario", required=True), base, check_files)  # type: ignore[arg-type]
@@ -128,6 +152,7 @@ def build_case(
         reference=str(reference),
         assumed=tuple(assumed),
         shortened=str(shortened),
+        waived=waived,
     )
 
 

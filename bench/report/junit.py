@@ -112,6 +112,13 @@ def junit_xml(cases: Sequence[CaseResult], name: str = "bench accept") -> ET.Ele
                 n["skipped"] += 1
             else:
                 ET.SubElement(tc, "system-out").text = message
+        for req, why in (cr.case.waived.items() if cr.case is not None else ()):
+            tc = ET.SubElement(suite, "testcase", classname=cr.case_id, name=f"requirement {req} (waived)")
+            tp = ET.SubElement(tc, "properties")
+            ET.SubElement(tp, "property", name="requirement", value=req)
+            ET.SubElement(tc, "skipped", message=f"waived: {why}", type="WAIVED").text = f"waived: {why}"
+            n["tests"] += 1
+            n["skipped"] += 1
         problems = list(cr.errors) + [
             f"run {r.seed}{'/' + r.variant if r.variant else ''}: {'; '.join(r.bench_issues + r.dut_issues)}"
             for r in cr.runs

@@ -53,9 +53,11 @@ def coverage(cases: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     """The requirement coverage matrix: per requirement (sorted), the cases that name or
     judge it with the worst verdict of its criteria there; ``judged`` False (a gap a
     reviewer must see) when a case names the requirement but no criterion judged it (a
-    criterion that did not apply, N/A, judges nothing)."""
+    criterion that did not apply, N/A, judges nothing) and does not waive it; a case that
+    waives it (``[case] waived``) is listed with its reason (``waived``)."""
     rows: dict[str, dict[str, Any]] = {}
     for case in cases:
+        waived = {w.get("requirement"): w.get("reason", "") for w in case.get("requirements_waived", [])}
         judged: dict[str, list[str]] = {}
         for cr in case.get("criteria", []):
             if cr.get("verdict") == str(Verdict.NA):  # did not apply: judged nothing
@@ -66,13 +68,16 @@ def coverage(cases: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
             row = rows.setdefault(req, {"requirement": req, "cases": [], "judged": True})
             verdicts = judged.get(req, [])
             entry = {"case": case.get("id", "?"), "verdict": _worst(verdicts) if verdicts else None,
-                     "criteria": len(verdicts)}
+                     "criteria": len(verdicts), "waived": waived.get(req) if not verdicts else None}
             row["cases"].append(entry)
-            if not verdicts:
+            if not verdicts and req not in waived:
                 row["judged"] = False
     for row in rows.values():
         verdicts = [c["verdict"] for c in row["cases"] if c["verdict"] is not None]
-        row["verdict"] = _worst(verdicts) if verdicts and row["judged"] else "NOT JUDGED"
+        if verdicts and row["judged"]:
+            row["verdict"] = _worst(verdicts)
+        else:
+            row["verdict"] = "WAIVED" if row["judged"] else "NOT JUDGED"
     return [rows[k] for k in sorted(rows)]
 
 
@@ -135,6 +140,7 @@ def report_model(results: Mapping[str, Any], *, title: str = "Acceptance report"
             "dut": {"kind": dut.get("kind", ""), "name": dut.get("name") or ""},
             "errors": list(case.get("errors", [])),
             "waived": list(case.get("integrity_waived", [])),
+            "requirements_waived": list(case.get("requirements_waived", [])),
             "criteria": [_criterion_row(c) for c in case.get("criteria", [])],
             "runs": [_run_row(r) for r in case.get("runs", [])],
             "figures": [],

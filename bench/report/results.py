@@ -160,6 +160,8 @@ def case_json(cr: CaseResult) -> dict[str, Any]:
             "verdict": str(cr.verdict),
             "errors": cr.errors,
             "integrity_waived": cr.waived,
+            "requirements_waived": [] if cr.case is None else
+            [{"requirement": k, "reason": v} for k, v in cr.case.waived.items()],
             "dut": None if cr.case is None else {"kind": cr.case.dut.kind, "name": cr.case.dut.name},
             "criteria": [criterion_json(c) for c in cr.criteria],
             "runs": [run_json(r) for r in cr.runs],

@@ -110,6 +110,8 @@ def case_lines(cases: Sequence[CaseResult]) -> list[str]:
         if problems:
             line += f" -- {problems[0]}" + (f" (+{len(problems) - 1} more)" if len(problems) > 1 else "")
         out.append(line)
+        if cr.case is not None:
+            out.extend(f"         {cr.case_id}: requirement {req} waived: {why}" for req, why in cr.case.waived.items())
     return out
 
 

@@ -39,6 +39,7 @@ BASE = """
 id = "T1"
 title = "test case"
 requirements = ["R1", "R2"]
+waived = { R2 = "the test cases built on this one judge R2 where they add its criteria" }
 
 [scenario]
 script = "drive.toml"

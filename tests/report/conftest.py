@@ -21,6 +21,7 @@ SUITE_CASE = """
 id = "ID1"
 title = "identity test case"
 requirements = ["R1", "R2"]
+waived = { R2 = "the test cases built on this one judge R2 where they add its criteria" }
 
 [scenario]
 script = "drive.toml"
@@ -123,13 +124,14 @@ def engine_run(tmp_path_factory) -> dict:
 
 @pytest.fixture(scope="session")
 def suite_out(tmp_path_factory) -> Path:
-    """The output folder of ``bench accept`` on the two report-test cases (RPT-B FAILs:
-    exit code 1): results.json, report.html, report.pdf, recordings/."""
+    """The output folder of ``bench accept`` on the two report-test cases (RPT-B FAILs its
+    limit and leaves a requirement unjudged, ERROR: exit code 3): results.json,
+    report.html, report.pdf, recordings/."""
     root = tmp_path_factory.mktemp("report_suite")
     cases = write_suite(root)
     out = root / "out"
     code = cli(["accept", str(cases / "rpt_a.toml"), str(cases / "rpt_b.toml"), "-o", str(out), "-q"])
-    assert code == 1, "RPT-B fails its limit, RPT-A passes"
+    assert code == 3, "RPT-B fails its limit and leaves R-NEVER unjudged (ERROR), RPT-A passes"
     return out
 
 

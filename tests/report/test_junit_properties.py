@@ -28,7 +28,7 @@ def test_every_criterion_testcase_carries_the_record_values(suite):
     root = ET.parse(suite["out"] / "junit.xml").getroot()
     case = doc["cases"][0]
     (ts,) = [s for s in root.iter("testsuite") if s.get("name") == case["id"]]
-    testcases = [tc for tc in ts.iter("testcase") if tc.get("name") != "load"]
+    testcases = [tc for tc in ts.iter("testcase") if tc.get("name") != "load" and "(waived)" not in tc.get("name")]
     assert len(testcases) == len(case["criteria"]) > 3
     for tc, crit in zip(testcases, case["criteria"], strict=True):
         assert tc.get("name").split("[")[0] == crit["id"]

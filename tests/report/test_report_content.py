@@ -94,10 +94,23 @@ def test_the_report_names_the_verdicts_the_gaps_and_the_dut_text_escaped(suite_o
     assert {"kind": "synthetic", "name": HOSTILE_NAME, "command": None, "version": HOSTILE_VERSION} in record[
         "identification"]["duts"]
     assert "1.2.0-rc1 &lt;b&gt;beta&lt;/b&gt;" in html and "<b>beta" not in html
-    assert record["verdict"] == "FAIL" and 'data-verdict="FAIL"' in html
-    # R-NEVER is named by RPT-B and judged by nothing: flagged in the coverage matrix
+    assert record["verdict"] == "ERROR" and 'data-verdict="FAIL"' in html and 'data-verdict="ERROR"' in html
+    # R-NEVER is named by RPT-B and judged by nothing: the case is ERROR saying so, its
+    # failing criterion still FAIL, and the gap flagged in the coverage matrix
+    b = next(c for c in record["cases"] if c["id"] == "RPT-B")
+    assert b["verdict"] == "ERROR" and any(e.startswith("requirement R-NEVER not judged: no criterion of the case "
+                                                        "names it") for e in b["errors"]), b["errors"]
+    assert any(c["verdict"] == "FAIL" for c in b["criteria"])
+    assert "requirement R-NEVER not judged" in html
     row = re.search(r'<tr class="gap"><td>R-NEVER</td>.*?</tr>', html, re.S)
     assert row is not None and "never judged" in row.group(0) and 'data-verdict="NOT JUDGED"' in row.group(0)
+    # R-LATENCY is waived by RPT-A, with its reason: shown, not a gap, and RPT-A PASSes
+    a = next(c for c in record["cases"] if c["id"] == "RPT-A")
+    assert a["verdict"] == "PASS" and a["requirements_waived"] == [
+        {"requirement": "R-LATENCY", "reason": "judged in the real-time case RPT-RT, not in lockstep"}]
+    row = re.search(r'<tr><td>R-LATENCY</td>.*?</tr>', html, re.S)
+    assert row is not None and "waived: judged in the real-time case RPT-RT" in row.group(0)
+    assert 'data-verdict="WAIVED"' in row.group(0)
     assert html.count('<section class="case"') == 2
     for title in SECTIONS:
         assert f">{title}<" in html
@@ -151,12 +164,12 @@ def _sections(html: str) -> dict[str, str]:
 def test_bench_report_on_the_recordings_alone_gives_the_live_report(suite_out, tmp_path):
     live = _sections((suite_out / "report.html").read_text())
     code = cli(["report", str(suite_out / "recordings"), "-o", str(tmp_path / "again"), "--no-pdf", "-q"])
-    assert code == 1  # the verdict's code: RPT-B FAILs
+    assert code == 3  # the verdict's code: RPT-B is ERROR (a requirement not judged)
     assert _sections((tmp_path / "again" / "report.html").read_text()) == live
     again = json.loads((tmp_path / "again" / "results.json").read_text())
     assert again["cases"] == _record(suite_out)["cases"]
     # from the record, re-judging the recordings beside it
-    assert cli(["report", str(suite_out), "-o", str(tmp_path / "rescored"), "--rescore", "--no-pdf", "-q"]) == 1
+    assert cli(["report", str(suite_out), "-o", str(tmp_path / "rescored"), "--rescore", "--no-pdf", "-q"]) == 3
     assert _sections((tmp_path / "rescored" / "report.html").read_text()) == live
 
 

@@ -184,9 +184,10 @@ def test_a_dut_that_never_answers_ends_as_dut_failed_at_the_start_up_timeout(ns,
     assert "did not answer BENCH_TIME(0 s) with DUT_READY within 1.5 s of its start" in res.reason
     end, dut_exit = _ended(res.path)
     assert end["status"] == "dut_failed"
-    # asleep before the harness installed its handler: SIGTERM's default action ends it
+    # asleep (or not yet that far) before the harness installed its handler: SIGTERM's
+    # default action ends it; how far it got in 1.5 s depends on the machine's load, so what
+    # it printed is not asserted here (the crash tests check that a DUT's lines are recorded)
     assert dut_exit["exit"] == "on signal SIGTERM" and dut_exit["ended"] == "exited on SIGTERM"
-    assert ("stdout", "misbehave: warming up the gyros ...") in log_texts(res.path)
     tx = RecordingReader(res.path).read_columnar("/wire/can/tx")
     assert np.count_nonzero(tx["can_id"] == BENCH_TIME_ID) >= 2  # BENCH_TIME(0) repeated while waiting, all recorded
     no_process_left(pid_file)
