@@ -18,6 +18,8 @@ import time
 import uuid
 from pathlib import Path
 
+import pytest
+
 from tests.fault_matrix.matrix import BENCH, MARK, _marked, bench, case
 
 RUNS = 3
@@ -122,16 +124,24 @@ def test_a_campaign_killed_midway_leaves_a_lock_the_next_start_takes_over(tmp_pa
     assert "lock" not in bench(*_args(path, out, runs), cwd=tmp_path, expect=0).err
 
 
-def test_a_case_that_ends_error_says_why_in_campaign_json(tmp_path):
-    # 2 runs cannot show the 5 passing runs the criterion asks for: the case is ERROR
-    path = case(tmp_path / "cases", limit='at_most = "1 m"\nmonte_carlo = { pass_runs = 5 }',
-                run="seeds = [1, 2, 3, 4, 5]")
+@pytest.mark.parametrize(
+    ("edit", "said"),
+    [
+        # 2 runs cannot show the 5 passing runs the criterion asks for: every run PASSes, the case is ERROR
+        ({"limit": 'at_most = "1 m"\nmonte_carlo = { pass_runs = 5 }', "run": "seeds = [1, 2, 3, 4, 5]"},
+         "criterion H: ERROR: 2 runs cannot show 5 passing runs"),
+        # the bench missed its timing budget in every run (the synthetic DUT's test hook): runs ERROR
+        ({"dut_extra": 'bench_status = "timing_budget"'}, "run ERROR (seeds 1, 2): run ended with status "
+                                                           "'timing_budget'"),
+    ],
+    ids=["criterion", "run"],
+)
+def test_a_case_that_ends_error_says_why_in_campaign_json(tmp_path, edit, said):
+    path = case(tmp_path / "cases", **edit)
     out = tmp_path / "campaign"
     r = bench(*_args(path, out, 2), cwd=tmp_path, expect=3)
-    result = json.loads((out / "campaign.json").read_text())
-    judged = result["verdicts"]["M10"]
+    judged = json.loads((out / "campaign.json").read_text())["verdicts"]["M10"]
     assert judged["verdict"] == "ERROR"
-    assert any("H" in e and "cannot show 5 passing runs" in e for e in judged["errors"]), judged["errors"]
-    assert "cannot show 5 passing runs" in r.out  # and on the terminal
-    assert {rec["verdict"] for rec in _records(out)} == {"PASS"}  # each run passed: the case is what is ERROR
-    assert not list(out.rglob("bench-error.log"))
+    assert any(e.startswith(said) for e in judged["errors"]), judged["errors"]
+    assert said in r.out  # and on the terminal
+    assert len(_records(out)) == 2 and not list(out.rglob("bench-error.log"))  # an ERROR verdict, not a crash
