@@ -4,7 +4,8 @@
 ``<dir>/recordings/`` the recordings, ``<dir>/campaign.json`` the aggregate
 (:mod:`bench.campaign.aggregate`) with what this invocation did. A run whose key already
 has a complete record is not run again, so an interrupted campaign continues where it
-stopped, and ``aggregate`` is the same whichever executor ran it.
+stopped, and ``aggregate`` is the same whichever executor ran it. One campaign at a time
+holds ``<dir>`` (``<dir>/campaign.lock``, :mod:`bench.campaign.lock`).
 """
 
 from __future__ import annotations
