@@ -4,7 +4,8 @@
 ``<dir>/recordings/`` the recordings, ``<dir>/campaign.json`` the aggregate
 (:mod:`bench.campaign.aggregate`) with what this invocation did. A run whose key already
 has a complete record is not run again, so an interrupted campaign continues where it
-stopped, and ``aggregate`` is the same whichever executor ran it.
+stopped, and ``aggregate`` is the same whichever executor ran it. One campaign at a time
+holds ``<dir>`` (``<dir>/campaign.lock``, :mod:`bench.campaign.lock`).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import datetime as _dt
 import json
 import os
 import shutil
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -23,10 +25,12 @@ from bench import __version__
 from bench.campaign.aggregate import aggregate
 from bench.campaign.executors import completed, open_executor, pool_broken, worker_killed
 from bench.campaign.guard import death_record, guarded_run, marker_path, read_marker
+from bench.campaign.lock import CampaignLock, acquire
 from bench.campaign.plan import PlannedRun, plan_campaign
 from bench.campaign.verdicts import judge_groups
-from bench.campaign.work import load_record, read_json, record_path, write_atomic
+from bench.campaign.work import RunBusyError, load_record, read_json, record_path, write_atomic
 from bench.crashlog import one_line
+from bench.record.lock import holder
 
 __all__ = ["CampaignOptions", "CampaignProgress", "run_campaign", "read_campaign"]
 
@@ -39,6 +43,7 @@ class CampaignProgress:
     done: int = 0
     failing: int = 0
     executed: int = 0
+    reused: int = 0
     to_run: int = 0
     lost: list[str] = field(default_factory=list)
     started: float = field(default_factory=time.monotonic)
@@ -95,12 +100,16 @@ class _Execution:
     broken local pool, or Dask giving up on runs whose workers died (``KilledWorker``: also
     a run only queued on a worker that another run killed), puts those runs back; those that
     had started are run again one at a time, and one whose worker dies alone is recorded
-    ERROR naming it."""
+    ERROR naming it. A run whose recording another process is still writing (a worker of a
+    killed campaign that went on: a remote Dask worker) is waited for: its record is then
+    taken, or the run run again if it left none."""
 
     def __init__(self, options: CampaignOptions, out: Path, env: dict[str, str], state: CampaignProgress,
-                 records: dict[str, dict[str, Any]], progress: Callable[[CampaignProgress], None] | None):
+                 records: dict[str, dict[str, Any]], progress: Callable[[CampaignProgress], None] | None,
+                 notice: Callable[[str], None]):
         self.options, self.out, self.env, self.state, self.records = options, out, env, state, records
-        self.progress = progress
+        self.progress, self.notice = progress, notice
+        self.busy: list[tuple[PlannedRun, RunBusyError]] = []
 
     def _done(self, run: PlannedRun, rec: dict[str, Any]) -> None:
         self.records[run.key] = rec
@@ -121,6 +130,9 @@ class _Execution:
                 run = by_future[id(fut)]
                 try:
                     rec = fut.result()
+                except RunBusyError as exc:  # another process is writing this very run
+                    self.busy.append((run, exc))
+                    continue
                 except Exception as exc:
                     if pool_broken(exc) or worker_killed(exc):  # a worker died: this run, or beside it?
                         unfinished.append(run)
@@ -134,7 +146,13 @@ class _Execution:
         return unfinished
 
     def run(self, todo: list[PlannedRun]) -> None:
-        for run in todo:  # an earlier campaign killed under it
+        pending = todo
+        while pending:
+            self._run(pending)
+            pending = self._waited_for()
+
+    def _run(self, todo: list[PlannedRun]) -> None:
+        for run in todo:  # an earlier campaign killed under it (a run still being written is told by its lock)
             marker_path(self.out, run.key).unlink(missing_ok=True)
         pending = todo
         workers = max(1, self.options.workers)
@@ -150,13 +168,53 @@ class _Execution:
                 if self.attempt([run], 1):
                     self._done(run, death_record(run, self.out, "it died again when the run was retried alone"))
 
+    def _waited_for(self) -> list[PlannedRun]:
+        """Wait until the runs found being written by another process are no longer; those
+        it recorded are taken (``reused``), the others returned to be run."""
+        again: list[PlannedRun] = []
+        busy, self.busy = self.busy, []
+        for run, exc in busy:
+            self.notice(f"bench campaign: {run.label}: {exc}; waiting for it to end")
+            while holder(exc.path) is not None:
+                time.sleep(0.5)
+            rec = load_record(self.out, run.key)
+            if rec is None:
+                again.append(run)
+                continue
+            self.records[run.key] = rec
+            self.state.done += 1
+            self.state.reused += 1
+            self.state.failing += _failing(rec)
+            self.state.last = rec
+            if self.progress:
+                self.progress(self.state)
+        return again
+
 
 def run_campaign(
-    options: CampaignOptions, progress: Callable[[CampaignProgress], None] | None = None
+    options: CampaignOptions, progress: Callable[[CampaignProgress], None] | None = None,
+    notice: Callable[[str], None] | None = None, command: str | None = None,
 ) -> dict[str, Any]:
-    """Run what is missing of the campaign and write ``campaign.json``; returns its content."""
+    """Run what is missing of the campaign and write ``campaign.json``; returns its content.
+
+    The folder is held for the whole campaign (:mod:`bench.campaign.lock`): while another
+    campaign holds it, :class:`~bench.campaign.lock.CampaignHeldError` is raised before
+    anything is read or written. ``notice`` is told what the user should know that is no
+    run's outcome (a stale lock taken over, a run still being written by another process);
+    default: stderr. ``command`` is what the lock says the holder is (default: this
+    process's command line)."""
     out = Path(options.out_dir).resolve()
-    out.mkdir(parents=True, exist_ok=True)
+    notice = notice or _stderr
+    with acquire(out, command, notice=notice) as held:
+        return _run_held(options, out, held, progress, notice)
+
+
+def _stderr(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
+
+
+def _run_held(options: CampaignOptions, out: Path, held: CampaignLock,
+              progress: Callable[[CampaignProgress], None] | None, notice: Callable[[str], None]) -> dict[str, Any]:
     plan = plan_campaign(options.paths, options.runs, options.seeds, options.clock)
     stale = _stale(out, plan)
     if options.prune and stale:
@@ -171,13 +229,13 @@ def run_campaign(
         else:
             records[run.key] = rec
     state = CampaignProgress(total=len(plan), done=len(records), to_run=len(todo),
-                             failing=sum(map(_failing, records.values())))
+                             failing=sum(map(_failing, records.values())), reused=len(plan) - len(todo))
     env = {k: v for k, v in os.environ.items() if k == "PYTHONPATH"} | options.env
     try:
         if progress:
             progress(state)
         if todo:
-            _Execution(options, out, env, state, records, progress).run(todo)
+            _Execution(options, out, env, state, records, progress, notice).run(todo)
     finally:  # also when interrupted: every run recorded so far (a worker may have finished one unseen)
         for run in plan:
             if run.key not in records and (rec := load_record(out, run.key)) is not None:
@@ -187,6 +245,7 @@ def run_campaign(
             verdicts, failed = judge_groups(plan, records), None
         except Exception as exc:  # a bench bug: still write what the runs gave, then raise it
             verdicts, failed = {}, exc
+        lock = {k: held.info.get(k) for k in ("host", "pid", "started_utc")}
         result = {
             "campaign": {"paths": [str(p) for p in options.paths], "planned": len(plan), "complete": not missing,
                          "missing": missing, "stale": stale, "bench_version": __version__,
@@ -195,8 +254,9 @@ def run_campaign(
                                      "clock": options.clock}},
             "aggregate": aggregate(records.values()),
             "verdicts": verdicts,
-            "invocation": {"executed": state.executed, "reused": len(plan) - len(todo), "lost": state.lost,
-                           "workers": options.workers, "scheduler": options.scheduler or "processes"},
+            "invocation": {"executed": state.executed, "reused": state.reused, "lost": state.lost,
+                           "workers": options.workers, "scheduler": options.scheduler or "processes",
+                           "lock": lock, "took_over": held.took_over},
         }
         write_atomic(out / "campaign.json", result)
         if failed is not None:

@@ -10,7 +10,10 @@
 
 Local workers (processes or a LocalCluster) get ``env`` (``PYTHONPATH``...) in their
 environment and ignore SIGINT: Ctrl-C is the campaign's, which stops them
-(:func:`stop_local`, or closing the LocalCluster). The workers of an existing cluster are
+(:func:`stop_local`, or closing the LocalCluster). Local worker processes also end with
+the campaign's process when it is killed (SIGKILL: on Linux the kernel sends them SIGTERM,
+``PR_SET_PDEATHSIG``), as a LocalCluster's workers do by themselves, so that no worker of a
+killed campaign goes on writing into its folder. The workers of an existing cluster are
 left as they were set up.
 """
 
@@ -20,6 +23,7 @@ import contextlib
 import multiprocessing
 import os
 import signal
+import sys
 from collections.abc import Iterator, Mapping
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from concurrent.futures import as_completed as cf_completed
@@ -34,17 +38,39 @@ __all__ = [
 LOOPBACK = "127.0.0.1"
 
 
-def _init_worker(env: Mapping[str, str]) -> None:
+def _init_worker(env: Mapping[str, str], parent: int | None = None) -> None:
     os.environ.update(env)
     with contextlib.suppress(ValueError):  # only a process's main thread sets handlers
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if parent is not None:
+        _end_with(parent)
+
+
+_PR_SET_PDEATHSIG = 1
+
+
+def _end_with(parent: int) -> None:
+    """Have the kernel send this process SIGTERM (what :func:`stop_local` sends) when its
+    parent ``parent`` dies, however it dies (Linux; elsewhere nothing)."""
+    if not sys.platform.startswith("linux"):
+        return
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0) != 0:
+            return
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent:  # it died before the request was made
+        os.kill(os.getpid(), signal.SIGTERM)
 
 
 @contextlib.contextmanager
 def local_executor(workers: int, env: Mapping[str, str] | None = None) -> Iterator[Executor]:
     """Local worker processes (spawned: no state inherited from the campaign's process)."""
     ex = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                             initializer=_init_worker, initargs=(dict(env or {}),))
+                             initializer=_init_worker, initargs=(dict(env or {}), os.getpid()))
     try:
         yield ex
     except BaseException:

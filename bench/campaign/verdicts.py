@@ -8,6 +8,9 @@ rebuilds each run's outcomes from its record and judges every case (at every swe
 with :func:`bench.acceptance.judge.judge_case`, the function ``bench accept`` uses, over
 every run the campaign planned for it: a run without a record, or a record without a
 criterion its run judges, makes the case ERROR (never a verdict on fewer runs than asked).
+A case judged ERROR says why in its ``errors`` (:func:`error_reasons`): besides those
+reasons, its runs recorded ERROR with their reasons and its criteria judged ERROR with
+theirs.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ from bench.acceptance.verdict import Verdict
 from bench.campaign.plan import PlannedRun
 from bench.campaign.sweep import case_at, point_label
 
-__all__ = ["judge_groups", "run_result", "missing_criteria"]
+__all__ = ["judge_groups", "run_result", "missing_criteria", "error_reasons"]
 
 
 def _value(c: Mapping[str, Any], seed: int) -> RunValue:
@@ -63,6 +66,32 @@ def missing_criteria(case: TestCase, rec: Mapping[str, Any]) -> list[str]:
     return out
 
 
+def _seeds(seeds: list[int]) -> str:
+    shown = ", ".join(map(str, seeds[:10]))
+    return f"seed {shown}" if len(seeds) == 1 else f"seeds {shown}" + (f" and {len(seeds) - 10} more"
+                                                                        if len(seeds) > 10 else "")
+
+
+def error_reasons(cr: Any, recs: Iterable[Mapping[str, Any]]) -> list[str]:
+    """What made a case ERROR besides the reasons it was given (``cr.errors``): its runs
+    recorded ERROR, grouped by variant and reason (``run ERROR [variant] (seeds 1, 4):
+    reason``), then its criteria judged ERROR (``criterion X [variant]: ERROR: reason``) for
+    another reason than an ERROR run's."""
+    runs: dict[tuple[str, str], list[int]] = {}
+    for r in recs:
+        if r.get("verdict") == "ERROR":
+            why = "; ".join([*(r.get("bench_issues") or []), *(r.get("dut_issues") or [])]) or "no reason recorded"
+            runs.setdefault((r.get("variant") or "", why), []).append(int(r["seed"]))
+    out = [f"run ERROR{f' [{v}]' if v else ''} ({_seeds(sorted(seeds))}): {why}"
+           for (v, why), seeds in sorted(runs.items())]
+    said = {why for _, why in runs}
+    for c in cr.criteria:
+        if c.verdict is Verdict.ERROR and c.aggregate.reason not in said:
+            variant = f" [{c.variant}]" if c.variant else ""
+            out.append(f"criterion {c.criterion.id}{variant}: ERROR: {c.aggregate.reason or 'no reason given'}")
+    return out
+
+
 def _num(x: float) -> float | None:
     return None if math.isnan(x) else x
 
@@ -92,9 +121,12 @@ def judge_groups(plan: Iterable[PlannedRun], records: Mapping[str, Mapping[str, 
                 errors.append(f"the record of {r['key'][:16]} (seed {r['seed']}) lacks {', '.join(lacking)}")
         cr = judge_case(case, [run_result(r) for r in sorted(recs, key=lambda r: (r.get("variant") or "", r["seed"]))],
                         errors)
+        why = list(cr.errors)
+        if cr.verdict is Verdict.ERROR:
+            why += [e for e in error_reasons(cr, recs) if e not in why]
         out[label] = {
             "case_id": case.id, "sweep": [list(kv) for kv in point], "verdict": cr.verdict.value, "runs": len(runs),
-            "errors": list(cr.errors),
+            "errors": why,
             "criteria": [
                 {"id": c.criterion.id, "variant": c.variant, "control": c.control, "verdict": c.verdict.value,
                  "value": _num(c.criterion.display(c.aggregate.value)), "unit": c.criterion.unit,

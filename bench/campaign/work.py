@@ -11,7 +11,9 @@ A run interrupted (Ctrl-C, SIGTERM) writes no record, so the next campaign runs 
 a run that crashed or could not be executed is recorded ERROR with its reason, its
 traceback in ``bench-error.log`` beside its recording (``bench campaign --retry-errors``
 runs it again). A run whose worker process dies under it is told by the campaign
-(:mod:`bench.campaign.guard`).
+(:mod:`bench.campaign.guard`). A run whose recording another process is writing (a worker
+of a killed campaign that went on) is no error of the run: :class:`RunBusyError`, no
+record and no log; the campaign waits for that process.
 """
 
 from __future__ import annotations
@@ -26,13 +28,28 @@ from typing import Any
 from bench.campaign.plan import PlannedRun
 from bench.errors import BenchError
 
-__all__ = ["execute_run", "record_path", "load_record", "write_atomic", "RunInterruptedError", "RECORD_VERSION"]
+__all__ = ["execute_run", "record_path", "load_record", "write_atomic", "RunInterruptedError", "RunBusyError",
+           "RECORD_VERSION"]
 
 RECORD_VERSION = 2
 
 
 class RunInterruptedError(BenchError):
     """The run's recording ended ``interrupted``: no record is written (it runs again)."""
+
+
+class RunBusyError(BenchError):
+    """The run's recording (``path``) is being written by another process (``pid``, 0:
+    unknown): no record is written."""
+
+    def __init__(self, path: str, pid: int):
+        self.path, self.pid = path, pid
+        who = f"pid {pid}" if pid else "another process"
+        super().__init__(f"its recording {path} is being written by {who} (a worker of an earlier campaign "
+                         "still running it?)")
+
+    def __reduce__(self) -> tuple:  # raised in a worker process, seen by the campaign's
+        return (type(self), (self.path, self.pid))
 
 
 def record_path(out_dir: str | Path, key: str) -> Path:
@@ -121,7 +138,7 @@ def execute_run(run: PlannedRun, out_dir: str) -> dict[str, Any]:
     from bench.acceptance.verdict import Verdict
     from bench.campaign.sweep import case_at
     from bench.crashlog import one_line, write_traceback
-    from bench.record.lock import clear_outputs
+    from bench.record.lock import OutputLockedError, clear_outputs
     from bench.scoring.data import load_run
 
     base = Path(out_dir)
@@ -147,6 +164,8 @@ def execute_run(run: PlannedRun, out_dir: str) -> dict[str, Any]:
         interrupted = data.run_end.get("status") == "interrupted"
         result = score_run(data, case)
         crits = {c.id: c for c in case.criteria}  # ids are unique in a case
+    except OutputLockedError as exc:  # this run, being written by another process: not this run's error
+        raise RunBusyError(str(exc.path), exc.pid) from None
     except Exception as exc:  # a run that could not be executed or judged: ERROR, recorded
         write_traceback(exc, folder, context=f"bench campaign: {run.label}")
         record.update(verdict=Verdict.ERROR.value, bench_issues=[f"{type(exc).__name__}: {one_line(exc)}"])

@@ -16,16 +16,23 @@ and the case verdicts of the run records ``DIR/campaign.json`` plans (those reco
 
 Each case (at each sweep point) is judged over all its runs as ``bench accept`` judges it
 (:mod:`bench.campaign.verdicts`: Monte Carlo modes, comparisons, negative controls).
+A campaign holds DIR while it runs (``DIR/campaign.lock``, :mod:`bench.campaign.lock`):
+a second ``bench campaign`` on DIR is refused at once, naming the holder's host, pid and
+start; a lock left by a killed campaign is taken over, said on stderr.
+``bench campaign-report`` of a DIR a campaign holds writes the report of what is recorded
+and says that the campaign is still running (on stderr and in the report).
+
 Exit codes of ``bench campaign``: 0 every case PASS or MARGINAL; 1 a case FAILed; 2 a
-malformed case or bad usage; 3 a case was ERROR: a run ERROR, or not run (the campaign is
-then incomplete). A report that cannot be written is said on stderr and changes none of
-them. Of ``bench campaign-report``: 0 written; 2 no readable ``DIR/campaign.json``; 3 the
-report could not be written.
+malformed case, bad usage, or DIR held by another campaign; 3 a case was ERROR: a run
+ERROR, or not run (the campaign is then incomplete). A report that cannot be written is
+said on stderr and changes none of them. Of ``bench campaign-report``: 0 written; 2 no
+readable ``DIR/campaign.json``; 3 the report could not be written.
 """
 
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 from pathlib import Path
 
@@ -90,8 +97,13 @@ def _progress(quiet: bool):
     return show
 
 
+def _notice(message: str) -> None:
+    print(for_terminal(message), file=sys.stderr, flush=True)
+
+
 def _run(args: argparse.Namespace) -> int:
     from bench.campaign.campaign import CampaignOptions, run_campaign
+    from bench.campaign.lock import CampaignHeldError
 
     if (args.runs is not None and args.runs < 1) or args.workers < 1:
         print("bench campaign: --runs and --workers must be at least 1", file=sys.stderr)
@@ -99,7 +111,11 @@ def _run(args: argparse.Namespace) -> int:
     options = CampaignOptions(list(args.paths), Path(args.out), args.runs, tuple(args.seed) if args.seed else None,
                               args.clock, args.workers, args.scheduler, retry_errors=args.retry_errors,
                               prune=args.prune)
-    result = run_campaign(options, _progress(args.quiet))
+    try:
+        result = run_campaign(options, _progress(args.quiet), _notice, command=shlex.join(["bench", *sys.argv[1:]]))
+    except CampaignHeldError as exc:
+        _notice(f"bench campaign: {exc}")
+        return EXIT_USAGE
     agg = result["aggregate"]
     for label, case in agg["cases"].items():
         lo, hi = case["pass_rate_interval"]
@@ -178,17 +194,43 @@ def _rejudged(campaign: dict, camp: dict, records: dict, keys: set[str]) -> dict
     return {label: {**v, "errors": [*v.get("errors", []), why]} for label, v in old.items()}
 
 
+def _running(out: Path) -> dict | None:
+    """Say on stderr whether a campaign holds ``out`` (or may: a lock left that names a
+    host whose locks this one cannot see); the holder when one does."""
+    from bench.campaign.lock import describe, lock_state, this_kernel
+
+    state, who = lock_state(out)
+    if state == "held":
+        _notice(f"bench campaign-report: a campaign is still running in {out} ({describe(who)}): "
+                "this report is of the runs recorded so far")
+        return who or {"pid": "?", "host": "?", "started_utc": "?"}
+    if state == "stale" and who is not None:
+        if who.get("host") == this_kernel()["host"]:
+            _notice(f"bench campaign-report: the last campaign in {out} ended without finishing ({describe(who)}): "
+                    "killed, or its machine lost; start it again to complete it")
+        else:
+            _notice(f"bench campaign-report: a campaign on {who.get('host')} may still be running in {out} "
+                    f"({describe(who)}; its lock cannot be checked from this host)")
+    return None
+
+
 def _report_only(args: argparse.Namespace) -> int:
     import json
 
     out = Path(args.out)
+    running = _running(out)
     try:
         campaign = json.loads((out / "campaign.json").read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
-        print(for_terminal(f"bench campaign-report: cannot read {out / 'campaign.json'}: {exc}"), file=sys.stderr)
+        later = "; the campaign running there writes it when it ends" if running is not None else ""
+        print(for_terminal(f"bench campaign-report: cannot read {out / 'campaign.json'}: {exc}{later}"),
+              file=sys.stderr)
         return EXIT_USAGE
     if args.workers < 1:
         print("bench campaign-report: --workers must be at least 1", file=sys.stderr)
         return EXIT_USAGE
-    ok = _write_report(reaggregated(campaign, out), out, pdf=not args.no_pdf, workers=args.workers)
+    campaign = reaggregated(campaign, out)
+    if running is not None:
+        campaign = {**campaign, "running": running}
+    ok = _write_report(campaign, out, pdf=not args.no_pdf, workers=args.workers)
     return EXIT_OK if ok else EXIT_ERROR

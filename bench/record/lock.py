@@ -24,7 +24,7 @@ from pathlib import Path
 
 from bench.errors import ConfigError
 
-__all__ = ["claim", "holder", "preflight", "preflight_folder", "clear_outputs"]
+__all__ = ["claim", "holder", "preflight", "preflight_folder", "clear_outputs", "OutputLockedError"]
 
 _USAGE = {
     errno.EISDIR: "is a folder, expected a recording file",
@@ -75,10 +75,22 @@ def _pid_of(fd: int) -> int:
     return 0
 
 
+class OutputLockedError(ConfigError):
+    """The output is being written by another process (``pid``: 0 when the kernel does not
+    say which); ``path`` is the output."""
+
+    def __init__(self, path: Path, pid: int):
+        self.path, self.pid = path, pid
+        who = f"pid {pid}" if pid else "another process"
+        super().__init__(f"is being written by another bench ({who}): two writers would interleave their records; "
+                         "wait for it or choose another output", file=str(path))
+
+    def __reduce__(self) -> tuple:  # pickled by a campaign's worker processes
+        return (type(self), (self.path, self.pid))
+
+
 def _refuse_locked(path: Path, pid: int) -> ConfigError:
-    who = f"pid {pid}" if pid else "another process"
-    return ConfigError(f"is being written by another bench ({who}): two writers would interleave their records; "
-                       "wait for it or choose another output", file=str(path))
+    return OutputLockedError(path, pid)
 
 
 def _refuse_existing(path: Path) -> ConfigError:

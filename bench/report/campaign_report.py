@@ -99,6 +99,7 @@ def campaign_model(campaign: Mapping[str, Any], out_dir: str | Path = "", *, gen
         "finished_utc": camp.get("finished_utc"),
         "generated_utc": generated_utc or _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "judged": judged, "groups": groups, "sweeps": sweeps, "verdict_names": _VERDICTS,
+        "running": campaign.get("running"),  # the holder of the folder's lock, while a campaign runs there
     }
 
 
