@@ -33,8 +33,8 @@ from typing import Any
 
 from bench.errors import RecordingError
 
-__all__ = ["source_problems", "source_metadata", "source_issues", "ACCEPT_FLAG", "MADE_BY", "UntrustedSourceError",
-           "refusal", "copy_metadata"]
+__all__ = ["own_problems", "source_problems", "source_metadata", "copy_metadata", "source_issues", "refusal",
+           "ACCEPT_FLAG", "MADE_BY", "UntrustedSourceError"]
 
 #: The command-line flag that accepts a damaged or unfinished source.
 ACCEPT_FLAG = "--accept-damaged-source"
@@ -68,20 +68,28 @@ def _inherited(run_start: Mapping[str, str]) -> list[str]:
     return [str(p) for p in problems]
 
 
-def source_problems(reader: Any, *, end_kept: bool = False) -> list[str]:
-    """What makes a recording (a :class:`~bench.record.reader.RecordingReader`) an
-    untrustworthy source: unfinished, damaged, ended early (unless ``end_kept``: the
-    derived recording keeps that ending and is judged on it), without ``run_end``, or
-    itself made from such a one."""
+def own_problems(reader: Any) -> list[str]:
+    """What is wrong with the file itself: never finished, damaged (the first of
+    :func:`source_problems`)."""
     out: list[str] = []
     name = reader.path.name
-    md = reader.metadata()
     if not reader.finished:
         out.append(f"{name} was never finished (the run was killed)")
     if reader.damage:
         lines = reader.damage_lines()
         more = f"; and {len(lines) - 2} more" if len(lines) > 2 else ""
         out.append(f"{name} is damaged, {len(lines)} stretch(es) could not be read ({'; '.join(lines[:2])}{more})")
+    return out
+
+
+def source_problems(reader: Any, *, end_kept: bool = False) -> list[str]:
+    """What makes a recording (a :class:`~bench.record.reader.RecordingReader`) an
+    untrustworthy source: unfinished, damaged, ended early (unless ``end_kept``: the
+    derived recording keeps that ending and is judged on it), without ``run_end``, or
+    itself made from such a one."""
+    out = own_problems(reader)
+    name = reader.path.name
+    md = reader.metadata()
     end = md.get("run_end")
     if reader.finished and end is not None and end.get("status") != "complete" and not end_kept:
         why = f": {end.get('reason')}" if end.get("reason") else ""

@@ -186,3 +186,19 @@ def test_a_right_batch_dut_passes_with_a_relative_output_folder(tmp_path):
     argv = json.loads(start["batch_command"])
     assert Path(argv[2]) == tmp_path / "out" / "recordings" / "BATCH" / "BATCH-s1.batch" / "input"
     assert Path(argv[3]).is_absolute() and Path(argv[3]).is_file()  # {output}: the result it wrote
+
+
+def test_a_report_of_a_results_record_whose_recording_is_now_damaged_is_error_never_its_last_verdict(
+        recording, tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(recording.parent.parent.parent, run)  # a bench run's folder: results.json, recordings/
+    rec = run / "recordings" / "SHORT-DR" / recording.name
+    chunk_flipped(recording, rec)  # damaged after it was judged PASS
+    out = tmp_path / "report"
+    r = bench("report", str(run), "-o", str(out), "--no-pdf", "-q", cwd=tmp_path, expect=3)
+    assert f"{recording.name} is damaged" in r.err and "--rescore" in r.err
+    html = (out / "report.html").read_text()
+    assert f"{recording.name} is damaged" in html
+    # re-judged, it is ERROR too
+    bench("report", str(run), "-o", str(tmp_path / "again"), "--no-pdf", "--no-figures", "--rescore", "-q",
+          cwd=tmp_path, expect=3)
