@@ -147,7 +147,8 @@ def _run(args: argparse.Namespace) -> int:
         except (ValueError, OverflowError, OSError):
             when = _visible(epoch)
         keys = ("kind", "case", "scenario", "seed", "clock", "dut", "imu_grade", "imu_rate_hz", "bench_version",
-                "git_commit", "replay_of", "source_complete", "source_damage", "accept_damaged_source")
+                "git_commit", "replay_of", "dut_import", "source_made_by", "source_complete", "source_problems",
+                "accept_damaged_source")
         print("  run: " + _visible(", ".join(f"{k}={start[k]}" for k in keys if k in start)) + f", epoch {when}")
     if d["span_s"]:
         print(f"  bench time {d['span_s'][0]:.3f} .. {d['span_s'][1]:.3f} s")

@@ -7,7 +7,9 @@
 * From a results record (``results.json`` or the folder of a ``bench accept`` run): the
   record as it is, its figures drawn from the recordings beside it
   (``recordings/<case>/<file>``); with ``--rescore`` those recordings are re-judged first,
-  exactly as from recordings.
+  exactly as from recordings. Without it, a recording found beside the record that is now
+  unfinished or damaged makes its run, its case and the report ERROR with the damage named
+  (:mod:`bench.report.evidence`), never the record's last verdict silently.
 
 Exit codes as every command's: the report's verdict, 0 PASS (or MARGINAL), 1 FAIL, 3
 ERROR; 2 usage (a missing or malformed input, named); 3 also when the report could not be
@@ -123,6 +125,12 @@ def _run(args: argparse.Namespace) -> int:
             if missing:
                 raise ConfigError(f"{records[0]}: recordings not found beside it: {', '.join(missing[:5])}")
             results = report_from_recordings([p for p in paths if p is not None])
+        else:  # the record's verdicts, unless a recording behind one is now damaged or unfinished
+            from bench.report.evidence import distrust_damaged
+
+            results, distrusted = distrust_damaged(results, locate)
+            for line in distrusted:
+                print(f"bench report: ERROR: {line}", file=sys.stderr)
     else:
         recs = _recordings(inputs)
         by_name = {p.name: p for p in recs}

@@ -7,9 +7,11 @@ For one run of a case (``[dut] kind = "batch"``, keys in :mod:`bench.acceptance.
    work folder ``<recording>.batch/`` beside the recording (no links, no clock);
 2. they are exported (:func:`~bench.exchange.i2nav_export.export_i2nav`) into
    ``<work>/input/``; ``[dut] config`` goes to ``<work>/dut_config.json``;
-3. the command runs (placeholders filled, in ``cwd``, stdin closed, its stdout and stderr
-   kept in ``<work>/stdout.txt``/``stderr.txt`` and recorded on ``/dut/log``) with its
-   timeout, in a process group of its own (killed whole on timeout);
+3. the command runs (placeholders filled with absolute paths, whatever the output folder
+   and the bench's working folder; in the case's folder or ``[dut] cwd`` relative to it;
+   stdin closed, its stdout and stderr kept in ``<work>/stdout.txt``/``stderr.txt`` and
+   recorded on ``/dut/log``) with its timeout, in a process group of its own (killed whole
+   on timeout);
 4. its result ``<work>/output/result.nav`` (and ``result_std.txt`` if written) is imported
    (:mod:`~bench.exchange.nav_import`) into the run's recording, which is judged as any.
 
@@ -17,7 +19,10 @@ A command that cannot be started, exits non-zero, runs past its timeout, writes 
 malformed result, or a result that floods (more epochs within a second of bench time than
 an external DUT may send frames: :func:`flooded`) ends the run ``dut_failed`` with the reason (FAIL: the DUT misbehaved,
 the bench did its part). A failure of the bench's own steps (synthesis, export, writing
-the recording) raises or ends the run ``error`` (ERROR).
+the recording) raises or ends the run ``error`` (ERROR): in particular inputs that came out
+unfinished or damaged are not given to the command; the run's recording is made from them
+(``run_start.source_made_by = "batch"``, :mod:`bench.record.provenance`) and ends
+``error`` naming the damage.
 """
 
 from __future__ import annotations
@@ -39,7 +44,8 @@ from bench.dut.process import LogLine
 from bench.errors import ConfigError
 from bench.exchange.i2nav_export import export_i2nav
 from bench.exchange.nav_import import NavFileError, read_nav_result, run_clock, write_output
-from bench.record.mcap_io import RecordingWriter
+from bench.record.mcap_io import RecordingReader, RecordingWriter
+from bench.record.provenance import source_problems
 from bench.run.case_runner import spec_from_case
 from bench.run.source import RunSource
 from bench.run.spec import RunSpec
@@ -122,6 +128,21 @@ def _argv(spec: BatchSpec, values: dict[str, str]) -> list[str]:
     return [w.format_map(values) for w in spec.argv]
 
 
+def _placeholders(work: Path, result: Path, std: Path, config: Path, case_dir: Path) -> dict[str, str]:
+    """The command's placeholders: absolute paths, whatever the output folder and the
+    bench's working folder (the command runs in the case's folder or ``[dut] cwd``)."""
+    values = {"input": work / "input", "output": result, "std": std, "config": config, "case_dir": case_dir,
+              "python": Path(sys.executable)}
+    return {k: str(Path(os.path.abspath(v))) for k, v in values.items()}
+
+
+def _inputs_problems(inputs: Path) -> list[str]:
+    """What makes the synthesized inputs untrustworthy (unfinished, damaged, not ended
+    ``complete``): :func:`bench.record.provenance.source_problems`."""
+    with RecordingReader(inputs) as r:
+        return source_problems(r)
+
+
 class BatchRunner:
     """:class:`~bench.acceptance.runner.CaseRunner` of ``[dut] kind = "batch"``."""
 
@@ -132,11 +153,17 @@ class BatchRunner:
         if not isinstance(spec, BatchSpec):
             raise ConfigError("the batch runner needs [dut] kind = 'batch'", file=case.file, key="dut.kind")
         run = spec_from_case(case, seed, Path(out_dir))
-        out = run.out
+        out = run.out.resolve()  # the command runs elsewhere (its cwd): every path it is given is absolute
         work = out.with_name(out.stem + ".batch")
         work.mkdir(parents=True, exist_ok=True)
         inputs = work / "inputs.mcap"
         self._synthesize(case, run, spec, inputs, progress)
+        problems = _inputs_problems(inputs)
+        if problems:  # the bench's own file: no command runs on it, the run is the bench's ERROR
+            why = f"the inputs the bench synthesized cannot be trusted: {'; '.join(problems)}"
+            write_output(inputs, out, None, end=("error", why), overwrite=True, made_by="batch",
+                         start_extra={"batch_work": str(work)})
+            return run.out
         export_i2nav(inputs, work / "input", imu=spec.imu)
         (work / "output").mkdir(exist_ok=True)
         result_p, std_p = work / "output" / "result.nav", work / "output" / "result_std.txt"
@@ -145,8 +172,7 @@ class BatchRunner:
         config_p = work / "dut_config.json"
         config_p.write_text(json.dumps(dict(case.dut.config), indent=2) + "\n", encoding="utf-8")
         base = case.path.resolve().parent if case.path is not None else Path.cwd()
-        values = {"input": str(work / "input"), "output": str(result_p), "std": str(std_p), "config": str(config_p),
-                  "python": sys.executable, "case_dir": str(base)}
+        values = _placeholders(work, result_p, std_p, config_p, base)
         argv = _argv(spec, values)
         cwd = base if spec.cwd is None else (base / spec.cwd).resolve()
         if not cwd.is_dir():
@@ -167,13 +193,13 @@ class BatchRunner:
                 else:
                     failure = flooded(result.solutions, result.qualities, run.dut.flood_frames_per_s)
         end = ("dut_failed", failure) if failure is not None else ("complete", "")
-        write_output(inputs, out, result, end=end, log=outcome.lines, overwrite=True,
-                     start_extra={"batch_command": json.dumps(argv), "batch_work": str(work)})
+        write_output(inputs, out, result, end=end, log=outcome.lines, overwrite=True, made_by="batch",
+                     start_extra={"batch_command": json.dumps(argv), "batch_work": str(work), "batch_cwd": str(cwd)})
         inputs.unlink(missing_ok=True)
         if progress is not None:
             total = (run.duration_ns or 0) * 1e-9
             progress(total, total)
-        return out
+        return run.out
 
     @staticmethod
     def _synthesize(case: TestCase, run: RunSpec, spec: BatchSpec, path: Path, progress: Progress | None) -> None:

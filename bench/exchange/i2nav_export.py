@@ -18,6 +18,15 @@ file               from                                                        f
 Formats, frames and the time base: :mod:`bench.exchange.i2nav_text`, ``docs/exchange.md``.
 The sensor topics are the samples the bench encoded for the DUT (after sensor faults,
 before the wire's quantization and wire faults).
+
+Text files cannot carry a recording's state the way a recording does (nothing that reads
+them would heed it), so a recording that is unfinished, damaged, without ``run_end`` or
+made from such a one (:func:`bench.record.provenance.source_problems`) is exported only
+when asked (``accept_damaged_source``): otherwise :class:`~bench.record.provenance.UntrustedSourceError`
+is raised before anything is written. Accepted, the folder gets ``SOURCE_PROBLEMS.txt``
+naming the problems and ``export.json`` records them (``source_complete``,
+``source_problems``, ``source_damage``, ``accept_damaged_source``); an export of a sound
+recording removes an old ``SOURCE_PROBLEMS.txt``.
 """
 
 from __future__ import annotations
@@ -32,12 +41,15 @@ from bench.errors import ConfigError
 from bench.exchange.gpstime import GpsClock
 from bench.exchange.i2nav_config import grade_of_attachments, kf_gins_yaml, lever_arm_frd
 from bench.exchange.i2nav_text import enu_to_ned, nav_rows, rfu_to_frd, std_rows, write_columns
+from bench.record.provenance import ACCEPT_FLAG, UntrustedSourceError, refusal, source_problems
 from bench.record.reader import RecordingReader
 from bench.sensors.imu.grade import ImuGrade
 
-__all__ = ["ExportSummary", "export_i2nav", "IMU_SOURCES"]
+__all__ = ["ExportSummary", "export_i2nav", "IMU_SOURCES", "PROBLEMS_FILE"]
 
 IMU_SOURCES = {"measured": "/imu", "ideal": "/imu/ideal"}
+#: the note an export of an untrustworthy recording leaves beside its files
+PROBLEMS_FILE = "SOURCE_PROBLEMS.txt"
 
 
 @dataclass
@@ -49,6 +61,8 @@ class ExportSummary:
     week: int = 0
     leap_s: int = 0
     imu_topic: str = ""
+    #: what makes the source untrustworthy (empty: nothing); exported only when accepted
+    problems: list[str] = field(default_factory=list)
 
 
 def _columnar(r: RecordingReader, topic: str) -> np.ndarray | None:
@@ -76,24 +90,46 @@ def _dut_files(folder: Path, clock: GpsClock, r: RecordingReader, out: ExportSum
         out.lines["dut_std.txt"] = write_columns(folder / "dut_std.txt", clock.sow_text(qual["t_ns"]), cols, fmts)
 
 
-def export_i2nav(run: str | Path, folder: str | Path, *, imu: str = "measured", dut: bool = False) -> ExportSummary:
+def _problems_note(folder: Path, run: str | Path, problems: list[str], damage: list[str]) -> None:
+    """``SOURCE_PROBLEMS.txt`` of an accepted untrustworthy source (removed if none)."""
+    note = folder / PROBLEMS_FILE
+    if not problems:
+        note.unlink(missing_ok=True)
+        return
+    lines = [f"These files were exported from {Path(run).resolve()}, which cannot be trusted:",
+             *(f"  - {p}" for p in problems),
+             *(["Damaged stretches (not in the files):", *(f"  - {d}" for d in damage)] if damage else []),
+             f"They were exported as far as the recording could be read because bench export was given {ACCEPT_FLAG}.",
+             "A result computed from them is judged on the recording itself (bench import-nav --run), which "
+             "carries the same problems.", ""]
+    note.write_text("\n".join(lines), encoding="utf-8")
+
+
+def export_i2nav(run: str | Path, folder: str | Path, *, imu: str = "measured", dut: bool = False,
+                 accept_damaged_source: bool = False) -> ExportSummary:
     """Export the recording ``run`` into ``folder`` (created; files in it are replaced).
 
     Raises :class:`ConfigError` for a recording without truth or the IMU topic asked for
-    (``imu``: ``measured`` or ``ideal``), or without DUT output when ``dut`` is set.
+    (``imu``: ``measured`` or ``ideal``), or without DUT output when ``dut`` is set;
+    :class:`~bench.record.provenance.UntrustedSourceError` (nothing written) for a recording
+    that cannot be trusted, unless ``accept_damaged_source`` (module docstring).
     """
     if imu not in IMU_SOURCES:
         raise ConfigError(f"expected one of {', '.join(IMU_SOURCES)}, found {imu!r}", key="imu")
     out_dir = Path(folder)
     if out_dir.exists() and not out_dir.is_dir():
         raise ConfigError("expected a folder to export into, found a file", file=str(out_dir))
-    out_dir.mkdir(parents=True, exist_ok=True)
     with RecordingReader(run) as r:
+        problems = source_problems(r, end_kept=True)  # the run's ending is in export.json
+        if problems and not accept_damaged_source:
+            raise UntrustedSourceError(f"{run}: {refusal(problems, 'bench export')}; nothing was exported")
+        out_dir.mkdir(parents=True, exist_ok=True)
         epoch = r.epoch_ns()
         if epoch == 0:
             raise ConfigError("the recording has no run_start.epoch_utc_ns (UTC of bench time zero)", file=str(run))
         clock = GpsClock.of_epoch(epoch)
-        out = ExportSummary(out_dir.resolve(), week=clock.week, leap_s=clock.leap_s, imu_topic=IMU_SOURCES[imu])
+        out = ExportSummary(out_dir.resolve(), week=clock.week, leap_s=clock.leap_s, imu_topic=IMU_SOURCES[imu],
+                            problems=problems)
         truth = _columnar(r, "/truth")
         if truth is None or len(truth) < 1:
             raise ConfigError("the recording holds no truth (/truth)", file=str(run))
@@ -149,8 +185,12 @@ def export_i2nav(run: str | Path, folder: str | Path, *, imu: str = "measured", 
         )
         (out_dir / "kf-gins.yaml").write_text(text, encoding="utf-8")
         out.lines["kf-gins.yaml"] = text.count("\n")
+        _problems_note(out_dir, run, problems, r.damage_lines())
+        end = meta.get("run_end") or {}
         (out_dir / "export.json").write_text(json.dumps({
             "source": str(Path(run).resolve()), "format": "i2nav", "imu_topic": out.imu_topic, "gps_week": clock.week,
             "leap_seconds": clock.leap_s, "sow_of_bench_zero": clock.zero_ns * 1e-9, "lines": out.lines,
+            "source_complete": not problems, "source_problems": problems, "source_damage": r.damage_lines(),
+            "accept_damaged_source": bool(accept_damaged_source), "source_run_end": dict(end),
         }, indent=2) + "\n", encoding="utf-8")
     return out

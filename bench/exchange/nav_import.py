@@ -13,7 +13,10 @@ arriving at their time of validity (as in lockstep).
 
 The new recording holds everything else of the run as it was (:func:`bench.record.copy.copy_records`),
 ``run_start`` with ``dut_import`` naming the result, and the run's own ``run_end``, so
-``bench score`` judges it like any run.
+``bench score`` judges it like any run. A run's recording that is unfinished, damaged or
+itself made from such a one is read as far as it goes, and its state travels into the new
+recording's ``run_start`` (:mod:`bench.record.provenance`): ERROR unless the import
+accepted it (``--accept-damaged-source``), as a replay of it would be.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from bench.exchange.i2nav_text import NAV_COLUMNS, STD_COLUMNS, enu_to_ned, read
 from bench.frames import CanBatch
 from bench.record.copy import copy_records
 from bench.record.mcap_io import RecordingReader, RecordingWriter
+from bench.record.provenance import copy_metadata
 from bench.record.wire_topics import CAN_RX, CAN_TOPICS
 from bench.run.output import BAD_FRAMES_TOPIC, LOG_TOPIC, READY_TOPIC, DutOutputRecorder
 from bench.scoring.viewwrite import add_views, is_view
@@ -153,21 +157,31 @@ def _frames(result: NavResult) -> list[CanBatch]:
 
 def write_output(run: str | Path, out: str | Path, result: NavResult | None, *,
                  end: tuple[str, str] | None = None, start_extra: dict[str, str] | None = None,
-                 log: list[LogLine] | None = None, overwrite: bool = False) -> dict[str, int]:
+                 log: list[LogLine] | None = None, overwrite: bool = False,
+                 accept_damaged_source: bool = False, made_by: str = "import-nav") -> dict[str, int]:
     """Write ``out``: the recording ``run`` with its DUT output replaced by ``result``
     (None: no output), ``run_start`` extended by ``start_extra``, the DUT's output lines
     ``log`` on ``/dut/log`` at the run's end, and ``run_end`` = ``end`` (default: the
-    run's own). Returns the counts (``solutions``, ``qualities``, receiver rejections)."""
+    run's own; ``complete`` if it has none, which its problems then name). Returns the
+    counts (``solutions``, ``qualities``, receiver rejections).
+
+    ``run``'s state -- unfinished, damaged, without ``run_end`` (or, with ``end`` given,
+    ended other than ``complete``), or itself made from such a recording -- travels into
+    ``out``'s ``run_start`` (:func:`bench.record.provenance.copy_metadata`, made by
+    ``made_by``, accepted by the user with ``accept_damaged_source``), so that ``bench
+    score`` judges ``out`` ERROR unless accepted, as it does a replay of ``run``."""
     if Path(out).resolve() == Path(run).resolve():
         raise ConfigError("the output would overwrite the run's own recording; give another -o", file=str(out))
     with RecordingReader(run) as src:
         meta = src.metadata()
-        own = meta.get("run_end", {"status": "error", "reason": "the source recording has no run_end"})
+        provenance = copy_metadata(src, accepted=accept_damaged_source, made_by=made_by, end_kept=end is None)
+        own = meta.get("run_end", {"status": "complete",
+                                   "reason": f"{src.path.name} has no run_end (see run_start.source_problems)"})
         status, reason = end if end is not None else (own.get("status", "error"), own.get("reason", ""))
         with RecordingWriter(out, epoch_ns=src.epoch_ns(), overwrite=overwrite) as rec:
             copy_records(src, rec, keep=lambda t, n, e: t not in DUT_TOPICS and not is_view(t, n, e),
                          drop_metadata=("run_start", "dut_output"))
-            rec.metadata("run_start", {**meta.get("run_start", {}), **(start_extra or {})})
+            rec.metadata("run_start", {**meta.get("run_start", {}), **(start_extra or {}), **provenance})
             spec = CAN_TOPICS[CAN_RX]
             rec.columnar_topic(spec.topic, spec.schema, spec.dtype, description=spec.description, units=spec.units)
             recorder = DutOutputRecorder(rec)
@@ -202,9 +216,10 @@ def run_clock(run: str | Path) -> tuple[GpsClock, int | None]:
 
 
 def import_nav(nav: str | Path, run: str | Path, out: str | Path, *, std: str | Path | None = None,
-               overwrite: bool = False) -> dict[str, int]:
+               overwrite: bool = False, accept_damaged_source: bool = False) -> dict[str, int]:
     """Write ``out``: the recording ``run`` with its DUT output replaced by the result ``nav``
-    (:func:`write_output`); ``run_start.dut_import`` names the files.
+    (:func:`write_output`); ``run_start.dut_import`` names the files. An unfinished or
+    damaged ``run`` is marked in ``out`` (judged ERROR unless ``accept_damaged_source``).
 
     Raises :class:`NavFileError` for a malformed result, :class:`ConfigError` for a recording
     that cannot be read or an ``out`` that cannot be written.
@@ -212,4 +227,5 @@ def import_nav(nav: str | Path, run: str | Path, out: str | Path, *, std: str | 
     clock, duration_ns = run_clock(run)
     result = read_nav_result(nav, clock, std=std, duration_ns=duration_ns)
     files = {"nav": str(Path(nav).resolve()), "std": str(Path(std).resolve()) if std else ""}
-    return write_output(run, out, result, start_extra={"dut_import": json.dumps(files)}, overwrite=overwrite)
+    return write_output(run, out, result, start_extra={"dut_import": json.dumps(files)}, overwrite=overwrite,
+                        accept_damaged_source=accept_damaged_source)
