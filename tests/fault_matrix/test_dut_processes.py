@@ -18,6 +18,9 @@ SPAWN = HERE / "run" / "duts" / "spawn_daemon.py"
 BATCH_DUT = HERE / "exchange" / "batch_dut.py"
 SHORT = HERE / "data" / "short_drive.toml"
 
+HARNESS = ("{python} -m bench.dut.harness --estimator dead_reckoning --can-interface {can_interface} "
+           "--can-channel {can_channel} --can-port {can_port} --imu {imu_port} --gnss {gnss_port} --config {config}")
+
 EXTERNAL = """
 [case]
 id = "DAEMON-EXT"
@@ -34,7 +37,7 @@ doppler = {{ model = "seed000" }}
 
 [dut]
 kind = "external"
-command = "{{python}} {spawn} {pid_file} -- {{python}} -m bench.dut.harness --estimator dead_reckoning --can-interface {{can_interface}} --can-channel {{can_channel}} --can-port {{can_port}} --imu {{imu_port}} --gnss {{gnss_port}} --config {{config}}"
+command = "{{python}} {spawn} {pid_file} -- {harness}"
 config = {{ initial_position = [34.246, 108.909, 380.0], alignment = "4 s" }}
 startup_timeout = "60 s"  # hang guards, not speed bounds
 shutdown_timeout = "60 s"
@@ -111,7 +114,7 @@ def _daemon_named(out: Path, recording: Path, daemon: int, cwd: Path) -> None:
 def test_an_external_dut_that_leaves_a_daemon_has_it_killed_and_named(ns, tmp_path):
     pid_file = tmp_path / "pids"
     case = tmp_path / "daemon_ext.toml"
-    case.write_text(EXTERNAL.format(short=SHORT, spawn=SPAWN, pid_file=pid_file))
+    case.write_text(EXTERNAL.format(short=SHORT, spawn=SPAWN, pid_file=pid_file, harness=HARNESS))
     out = tmp_path / "out"
     bench("run", str(case), "-o", str(out), "-q", "--no-plots", cwd=tmp_path, ns=ns, expect=0)
     (daemon,) = pids(pid_file)

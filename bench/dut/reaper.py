@@ -1,0 +1,434 @@
+"""Every process a DUT starts ends with its run: its daemons, its groups, its orphans.
+
+A DUT process is started in a session of its own and its group is ended at shutdown
+(:mod:`bench.dut.process`), but a DUT can start processes out of that group: a daemon
+(fork, ``setsid``, fork again), a process group of its own, ``nohup cmd &`` in a script
+that then exits. :class:`DutProcesses` starts a DUT's first process so that every process
+it starts can be found when the run ends, and :meth:`DutProcesses.end` ends those it
+finds. How they are found (:attr:`DutProcesses.tracking`):
+
+``cgroup``     (Linux, where the bench can make a cgroup v2 beside its own:
+               :mod:`bench.dut.cgroup`) the members of the run's cgroup: born inside, they
+               cannot leave it;
+``subreaper``  (Linux otherwise) while a DUT of it runs, the bench's process is a child
+               subreaper (``prctl(PR_SET_CHILD_SUBREAPER)``), so an orphaned process of
+               the DUT is reparented to it rather than to init and stays its descendant:
+               the bench's descendants that carry the run's token in their environment
+               (:data:`TOKEN_ENV`, given to the DUT's first process and inherited);
+``token``      (no subreaper could be set) as ``subreaper``, but an orphan goes to init: a
+               token holder that no longer descends from the bench is named, not killed;
+``none``       (no ``/proc``: not Linux) only the DUT's process group is ended.
+
+A process with no or another token -- another run's DUT, or whatever else the process
+hosting the bench runs (pytest, a campaign worker, a Dask worker's tasks in other
+threads) -- is never signalled, and every process is signalled through a pidfd opened
+before it is checked, so a process id reused meanwhile is never hit.
+
+What is found gets SIGTERM, the grace (the DUT's shutdown timeout), then SIGKILL
+(``cgroup.kill`` in a cgroup: a process forking meanwhile is killed too); the bench reaps
+those that became its children, and each is returned (:class:`LeftRunning`: pid, command
+line, how it ended) for the run's notes.
+
+What a subreaper does to the process hosting the bench: while a DUT of it runs, every
+orphan of any of its descendants is reparented to it, its other work's too. The bench
+reaps only processes it found with its run's token and their zombie children -- it never
+waits for "any child", which would steal another's exit status -- and turns the subreaper
+off when its last DUT has ended (unless the host was one before). An orphan that exits by
+itself while a DUT runs thus stays a zombie of the host until the host exits (a zombie has
+no environment to tell whose it is); it holds a process-table entry, nothing else. Where
+the bench makes a cgroup it is not made a subreaper at all.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+import select
+import signal
+import subprocess
+import threading
+import time
+import uuid
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from bench.dut.cgroup import RunCgroup
+
+__all__ = ["DutProcesses", "LeftRunning", "TOKEN_ENV", "subreaper_state", "wait_group_gone"]
+
+#: The environment variable that carries a run's token to every process of its DUT.
+TOKEN_ENV = "BENCH_DUT_RUN"
+
+_PR_SET_CHILD_SUBREAPER = 36
+_PR_GET_CHILD_SUBREAPER = 37
+_HANG_S = 5.0  # a hang guard on a SIGKILLed process to disappear
+_ROUNDS = 10  # kill rounds at most (a process forking as fast as it is killed)
+_MAX_COMMAND = 300
+
+
+@dataclass(frozen=True)
+class LeftRunning:
+    """A process of a DUT found running after the DUT's shutdown: its id, command line
+    (``/proc/PID/cmdline``, arguments joined by spaces, cut at 300 characters) and how
+    it ended (``ended on SIGTERM``, ``killed (SIGKILL) ...``, or ``not killed: ...``)."""
+
+    pid: int
+    command: str
+    ended: str
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"pid": self.pid, "command": self.command, "ended": self.ended}
+
+
+# ----------------------------------------------------------------------------- subreaper
+class _Subreaper:
+    """The process's subreaper attribute, held while any run of it needs it."""
+
+    lock = threading.Lock()
+    users = 0
+    owner = 0  # the process the count belongs to (a forked child starts at none)
+    was = False  # the host was a subreaper before the first user
+
+
+def _prctl(option: int, arg: Any) -> int:
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return int(libc.prctl(ctypes.c_int(option), arg, ctypes.c_ulong(0), ctypes.c_ulong(0), ctypes.c_ulong(0)))
+    except (OSError, AttributeError):  # no libc prctl: not Linux
+        return -1
+
+
+def subreaper_state() -> bool | None:
+    """Whether this process is a child subreaper (None: cannot tell, not Linux)."""
+    value = ctypes.c_int(0)
+    if _prctl(_PR_GET_CHILD_SUBREAPER, ctypes.byref(value)) != 0:
+        return None
+    return bool(value.value)
+
+
+def _acquire_subreaper() -> bool:
+    """Make this process a child subreaper (counted); whether it is one."""
+    with _Subreaper.lock:
+        if _Subreaper.owner != os.getpid():
+            _Subreaper.owner, _Subreaper.users = os.getpid(), 0
+        if _Subreaper.users == 0:
+            state = subreaper_state()
+            if state is None:
+                return False
+            _Subreaper.was = state
+            if not state and _prctl(_PR_SET_CHILD_SUBREAPER, ctypes.c_ulong(1)) != 0:
+                return False
+        _Subreaper.users += 1
+        return True
+
+
+def _release_subreaper() -> None:
+    with _Subreaper.lock:
+        if _Subreaper.owner != os.getpid() or _Subreaper.users == 0:
+            return
+        _Subreaper.users -= 1
+        if _Subreaper.users == 0 and not _Subreaper.was:
+            _prctl(_PR_SET_CHILD_SUBREAPER, ctypes.c_ulong(0))
+
+
+# ------------------------------------------------------------------------------- /proc
+@dataclass(frozen=True)
+class _Stat:
+    ppid: int
+    state: str
+    pgrp: int
+    session: int
+
+
+def _stat(pid: int) -> _Stat | None:
+    """Parent, state letter, process group and session of a process; None if there is none."""
+    try:
+        text = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    f = text[text.rindex(")") + 2 :].split()
+    return _Stat(int(f[1]), f[0], int(f[2]), int(f[3]))
+
+
+def _processes() -> dict[int, _Stat]:
+    """Every process visible."""
+    out = {}
+    with contextlib.suppress(OSError):
+        for entry in os.listdir("/proc"):
+            if entry.isdigit() and (st := _stat(int(entry))) is not None:
+                out[int(entry)] = st
+    return out
+
+
+def wait_group_gone(pgid: int, timeout_s: float = 5.0) -> bool:
+    """Wait until no live process is left in process group ``pgid`` (one just killed:
+    its members take a moment to exit), at most ``timeout_s`` (a hang guard); whether
+    none is. The group's id cannot be reused while a member exists."""
+    deadline = time.monotonic() + timeout_s
+    pause = 0.001
+    while any(st.pgrp == pgid and st.state not in ("Z", "X") for st in _processes().values()):
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(pause)
+        pause = min(2 * pause, 0.05)
+    return True
+
+
+def _has_token(pid: int, needle: bytes) -> bool:
+    try:
+        return needle in Path(f"/proc/{pid}/environ").read_bytes().split(b"\0")
+    except OSError:  # gone, a zombie, or another user's
+        return False
+
+
+def _descends(pid: int, ancestor: int) -> bool:
+    """Whether ``pid`` descends from ``ancestor`` (read now, up the parent chain)."""
+    seen = 0
+    while pid > 1 and seen < 100_000:
+        st = _stat(pid)
+        if st is None:
+            return False
+        pid = st.ppid
+        if pid == ancestor:
+            return True
+        seen += 1
+    return False
+
+
+def _command(pid: int) -> str:
+    try:
+        raw = Path(f"/proc/{pid}/cmdline").read_bytes()
+    except OSError:
+        raw = b""
+    text = raw.rstrip(b"\0").replace(b"\0", b" ").decode("utf-8", "replace")
+    if not text:
+        with contextlib.suppress(OSError):
+            stat = Path(f"/proc/{pid}/stat").read_text()
+            text = stat[stat.index("(") : stat.rindex(")") + 1]
+    return text if len(text) <= _MAX_COMMAND else text[: _MAX_COMMAND - 1] + "…"
+
+
+class _Proc:
+    """A process found: its pidfd where the kernel has them (so its id can be reused
+    without it being hit), its command line."""
+
+    def __init__(self, pid: int, fd: int | None):
+        self.pid = pid
+        self.fd = fd
+        self.command = _command(pid)
+
+    @classmethod
+    def open(cls, pid: int) -> _Proc | None:
+        """The process, None if it is gone."""
+        try:
+            return cls(pid, os.pidfd_open(pid))
+        except ProcessLookupError:
+            return None
+        except (OSError, AttributeError):  # no pidfds (Linux < 5.3): by id
+            return cls(pid, None) if _stat(pid) is not None else None
+
+    def signal(self, sig: int) -> None:
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            if self.fd is not None:
+                signal.pidfd_send_signal(self.fd, sig)
+            else:
+                os.kill(self.pid, sig)
+
+    def gone(self) -> bool:
+        """Whether it has exited (a zombie is gone)."""
+        if self.fd is not None:
+            p = select.poll()
+            p.register(self.fd, select.POLLIN)
+            return bool(p.poll(0))
+        st = _stat(self.pid)
+        return st is None or st.state in ("Z", "X")
+
+    def reap(self) -> None:
+        """Reap it if it is a zombie child of this process (an orphan it adopted)."""
+        with contextlib.suppress(ChildProcessError, OSError):
+            if self.fd is not None and hasattr(os, "P_PIDFD"):
+                os.waitid(os.P_PIDFD, self.fd, os.WEXITED | os.WNOHANG)
+            elif (st := _stat(self.pid)) is not None and st.ppid == os.getpid() and st.state == "Z":
+                os.waitpid(self.pid, os.WNOHANG)  # a zombie child keeps its id until reaped
+
+    def close(self) -> None:
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
+
+
+def _wait_gone(procs: Sequence[_Proc], timeout_s: float) -> None:
+    deadline = time.monotonic() + timeout_s
+    pause = 0.001
+    while not all(p.gone() for p in procs):
+        left = deadline - time.monotonic()
+        if left <= 0:
+            return
+        time.sleep(min(pause, left))
+        pause = min(2 * pause, 0.05)
+
+
+# ------------------------------------------------------------------------------- runs
+class DutProcesses:
+    """The processes of one run's DUT: :meth:`popen` starts its first one, :meth:`end`
+    ends every one left (idempotent; also what releases the cgroup or the subreaper).
+
+    ``cgroup``: try a cgroup first (False: the subreaper and the token only).
+    """
+
+    def __init__(self, *, cgroup: bool = True):
+        self.token = uuid.uuid4().hex
+        #: how the DUT's processes are found (module docstring); set by :meth:`popen`
+        self.tracking = "none"
+        self._cgroup = RunCgroup.create(self.token) if cgroup else None
+        self._subreaper = False
+        self._session: int | None = None  # the DUT's own session (start_new_session)
+        self._zombies: dict[int, _Proc] = {}
+        self._left: list[LeftRunning] | None = None
+
+    @property
+    def env(self) -> dict[str, str]:
+        """The environment variable every process of the DUT inherits."""
+        return {TOKEN_ENV: self.token}
+
+    def popen(self, argv: Sequence[str], **kwargs: Any) -> subprocess.Popen:
+        """``subprocess.Popen(argv, **kwargs)`` with this run's token in its environment
+        (``env``, default this process's), inside the run's cgroup where there is one,
+        else with this process a subreaper while the run lasts."""
+        kwargs["env"] = {**(os.environ if kwargs.get("env") is None else kwargs["env"]), **self.env}
+        p: subprocess.Popen | None = None
+        if self._cgroup is not None:
+            try:
+                p = subprocess.Popen(list(argv), preexec_fn=self._cgroup.entering(), **kwargs)
+                self.tracking = "cgroup"
+            except subprocess.SubprocessError:  # the kernel refused it the cgroup: without
+                self._cgroup.remove(0.0)
+                self._cgroup = None
+            finally:
+                if self._cgroup is not None:
+                    self._cgroup.started()
+        if p is None:
+            if Path("/proc/self/stat").exists():
+                self._subreaper = _acquire_subreaper()
+                self.tracking = "subreaper" if self._subreaper else "token"
+            p = subprocess.Popen(list(argv), **kwargs)
+        if kwargs.get("start_new_session"):
+            self._session = p.pid
+        return p
+
+    # ----------------------------------------------------------------------- the end
+    def end(self, grace_s: float) -> list[LeftRunning]:
+        """End every process of the DUT still running: SIGTERM, at most ``grace_s`` for
+        them to exit, SIGKILL; reap the adopted ones; release the cgroup or the
+        subreaper. Call it once the DUT's first process has been reaped (and, if its group
+        was killed, the group is gone: :func:`wait_group_gone`). Returns what was found,
+        in the order found; an interrupt while waiting still kills them."""
+        if self._left is not None:
+            return self._left
+        self._left = []
+        found: dict[int, tuple[_Proc, str | None]] = {}
+        looked = False
+        try:
+            if self.tracking != "none":
+                live, foreign = self._find(found)
+                for p in foreign:
+                    self._left.append(LeftRunning(p.pid, p.command, "not killed: no longer a descendant of the bench"))
+                    p.close()
+                for p in live:
+                    found[p.pid] = (p, None)
+                    p.signal(signal.SIGTERM)
+                looked = True
+                _wait_gone(live, grace_s)
+                for p in live:
+                    ended = "ended on SIGTERM" if p.gone() else f"killed (SIGKILL) {grace_s:g} s after SIGTERM"
+                    found[p.pid] = (p, ended)
+        finally:
+            try:
+                if self.tracking != "none" and (found or not looked or self._populated()):
+                    self._kill_all(found)
+                for z in self._zombies.values():  # zombie children of what ended, adopted now
+                    z.reap()
+            finally:
+                for pid, (p, ended) in found.items():
+                    self._left.append(LeftRunning(pid, p.command, ended or "killed (SIGKILL)"))
+                    p.close()
+                for z in self._zombies.values():
+                    z.close()
+                self._zombies = {}
+                self._release()
+        return self._left
+
+    def _populated(self) -> bool:
+        return self._cgroup is not None and self._cgroup.populated()
+
+    def _kill_all(self, found: dict[int, tuple[_Proc, str | None]]) -> None:
+        """SIGKILL what is left and whatever is found meanwhile, then reap it."""
+        for _ in range(_ROUNDS):
+            if self._cgroup is not None:
+                self._cgroup.kill()
+            for p, _ended in found.values():
+                if not p.gone():
+                    p.signal(signal.SIGKILL)
+            more, foreign = self._find(found)
+            for p in foreign:
+                p.close()
+            for p in more:
+                p.signal(signal.SIGKILL)
+                found[p.pid] = (p, "killed (SIGKILL): started during the shutdown")
+            _wait_gone([p for p, _ in found.values()], _HANG_S)
+            if not more:
+                break
+        for p, _ended in found.values():
+            p.reap()
+
+    def _find(self, exclude: dict[int, Any]) -> tuple[list[_Proc], list[_Proc]]:
+        """``(live processes of the DUT, token holders out of the bench's descent)``,
+        but those in ``exclude``; notes the zombies to reap."""
+        live: list[_Proc] = []
+        if self._cgroup is not None:
+            for pid in self._cgroup.pids():
+                if pid not in exclude and (p := _Proc.open(pid)) is not None:
+                    if self._cgroup.holds(pid) and not p.gone():  # through the pidfd's process
+                        live.append(p)
+                    else:
+                        p.close()
+            return live, []
+        foreign: list[_Proc] = []
+        me, needle = os.getpid(), f"{TOKEN_ENV}={self.token}".encode()
+        table = _processes()
+        ours = {pid for pid, st in table.items() if pid != me and st.state not in ("Z", "X")
+                and (self._in_session(st) or _has_token(pid, needle))}
+        for pid in sorted(ours - exclude.keys()):
+            if (p := _Proc.open(pid)) is None:
+                continue
+            st = _stat(pid)  # checked again, now that the pidfd holds the process
+            if st is None or st.state in ("Z", "X") or pid == self._session:
+                p.close()
+            elif self._in_session(st) or (_has_token(pid, needle) and _descends(pid, me)):
+                live.append(p)
+            elif _has_token(pid, needle):
+                foreign.append(p)
+            else:
+                p.close()
+        for pid, st in table.items():  # zombies that are (or will be) adopted
+            if (st.state == "Z" and pid not in self._zombies and pid != self._session
+                    and (st.ppid in ours or (st.ppid == me and self._in_session(st)))
+                    and (z := _Proc.open(pid)) is not None):
+                self._zombies[pid] = z
+        return live, foreign
+
+    def _in_session(self, st: _Stat) -> bool:
+        """In the DUT's own session or process group (its id cannot be reused while a
+        member lives, and no other process can join it)."""
+        return self._session is not None and self._session in (st.session, st.pgrp)
+
+    def _release(self) -> None:
+        if self._cgroup is not None:
+            self._cgroup.remove()
+            self._cgroup = None
+        if self._subreaper:
+            self._subreaper = False
+            _release_subreaper()
