@@ -12,17 +12,15 @@ There is none where cgroup2 is not mounted here (cgroup v1 hosts; a network name
 ``ip netns exec``, which mounts a fresh ``/sys``), where the bench's cgroup is not
 writable (no root, no delegated subtree), where ``cgroup.kill`` is missing, or where a
 process cannot be moved into the child (the kernel says no): :meth:`RunCgroup.create`
-returns None, or the start fails and the caller starts the DUT without it.
+returns None, or :meth:`RunCgroup.add` says no and the caller goes on without it.
 """
 
 from __future__ import annotations
 
 import contextlib
-import functools
 import os
 import re
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 __all__ = ["RunCgroup", "PREFIX"]
@@ -65,9 +63,9 @@ def own_cgroup() -> tuple[Path, str] | None:
 
 
 class RunCgroup:
-    """One run's cgroup: made by :meth:`create`, entered by the DUT's first process
-    (:meth:`entering`), its members listed (:meth:`pids`), killed (:meth:`kill`) and
-    removed (:meth:`remove`)."""
+    """One run's cgroup: made by :meth:`create`, the DUT's first process put in it
+    (:meth:`add`), its members listed (:meth:`pids`), killed (:meth:`kill`) and removed
+    (:meth:`remove`)."""
 
     def __init__(self, folder: Path, path: str):
         self.folder = folder
@@ -98,17 +96,19 @@ class RunCgroup:
             return None
         return cg
 
-    def entering(self) -> Callable[[], object]:
-        """What the DUT's first process calls between ``fork`` and ``exec`` (a
-        ``preexec_fn``): it writes ``0`` to ``cgroup.procs``, moving itself in; a refusal
-        raises there, and the start fails with :class:`subprocess.SubprocessError`. One
-        system call, no lock taken: as safe as a ``preexec_fn`` gets in a process with
-        threads."""
-        assert self._fd is not None, "entering() after the start"
-        return functools.partial(os.write, self._fd, b"0")
+    def add(self, pid: int) -> bool:
+        """Move process ``pid`` into it (once: the file is closed then); whether it is in."""
+        if self._fd is None:
+            return False
+        try:
+            os.write(self._fd, str(pid).encode())
+        except OSError:  # the kernel says no (delegation, a threaded or domain-invalid cgroup)
+            return False
+        finally:
+            self._close()
+        return self.holds(pid)
 
-    def started(self) -> None:
-        """The DUT has been started (or failed to): close the file it entered by."""
+    def _close(self) -> None:
         if self._fd is not None:
             os.close(self._fd)
             self._fd = None
@@ -144,7 +144,7 @@ class RunCgroup:
     def remove(self, timeout_s: float = 5.0) -> bool:
         """Remove it once no live process is in it (waiting at most ``timeout_s``, a hang
         guard: killed processes leave within milliseconds); whether it is gone."""
-        self.started()
+        self._close()
         deadline = time.monotonic() + timeout_s
         pause = 0.001
         while True:

@@ -43,8 +43,10 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import errno
 import os
 import select
+import shutil
 import signal
 import subprocess
 import threading
@@ -67,6 +69,10 @@ _PR_GET_CHILD_SUBREAPER = 37
 _HANG_S = 5.0  # a hang guard on a SIGKILLed process to disappear
 _ROUNDS = 10  # kill rounds at most (a process forking as fast as it is killed)
 _MAX_COMMAND = 300
+_SH = "/bin/sh"
+#: what the DUT's first process runs until it is in the cgroup: a line read (none: the
+#: bench failed meanwhile, and nothing is run), then the DUT, on /dev/null
+_TRAMPOLINE = 'read -r _ || exit 125; exec "$@" </dev/null'
 
 
 @dataclass(frozen=True)
@@ -260,6 +266,19 @@ class _Proc:
             self.fd = None
 
 
+def _check_executable(name: str, cwd: Any, env: dict[str, str]) -> None:
+    """Raise the :class:`OSError` Popen would raise when ``name`` cannot be executed (the
+    DUT is started through a shell that would only exit 127)."""
+    if os.sep in name:
+        path = Path(name) if os.path.isabs(name) or cwd is None else Path(cwd) / name
+        if not path.exists():
+            raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), name)
+        if path.is_dir() or not os.access(path, os.X_OK):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), name)
+    elif shutil.which(name, path=env.get("PATH", os.defpath)) is None:
+        raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), name)
+
+
 def _wait_gone(procs: Sequence[_Proc], timeout_s: float) -> None:
     deadline = time.monotonic() + timeout_s
     pause = 0.001
@@ -296,28 +315,50 @@ class DutProcesses:
 
     def popen(self, argv: Sequence[str], **kwargs: Any) -> subprocess.Popen:
         """``subprocess.Popen(argv, **kwargs)`` with this run's token in its environment
-        (``env``, default this process's), inside the run's cgroup where there is one,
-        else with this process a subreaper while the run lasts."""
-        kwargs["env"] = {**(os.environ if kwargs.get("env") is None else kwargs["env"]), **self.env}
+        (``env``, default this process's) and its standard input ``/dev/null`` (``stdin``
+        must be :data:`subprocess.DEVNULL`), inside the run's cgroup where there is one,
+        else with this process a subreaper while the run lasts.
+
+        In a cgroup the process starts as ``/bin/sh`` waiting for a line on its standard
+        input; it is moved into the cgroup, then told to go on, and replaces itself with
+        ``argv`` (``exec``: the same process id): the DUT runs nothing outside. A missing
+        or non-executable program raises :class:`OSError` here, as Popen does."""
+        if kwargs.get("stdin", subprocess.DEVNULL) != subprocess.DEVNULL:
+            raise ValueError("a DUT's standard input is /dev/null")
+        kwargs["stdin"] = subprocess.DEVNULL
+        env = kwargs["env"] = {**(os.environ if kwargs.get("env") is None else kwargs["env"]), **self.env}
         p: subprocess.Popen | None = None
-        if self._cgroup is not None:
+        if self._cgroup is not None and os.access(_SH, os.X_OK):
+            _check_executable(argv[0], kwargs.get("cwd"), env)
+            p = subprocess.Popen([_SH, "-c", _TRAMPOLINE, "bench-dut", *argv], **{**kwargs, "stdin": subprocess.PIPE})
             try:
-                p = subprocess.Popen(list(argv), preexec_fn=self._cgroup.entering(), **kwargs)
-                self.tracking = "cgroup"
-            except subprocess.SubprocessError:  # the kernel refused it the cgroup: without
+                if self._cgroup.add(p.pid):
+                    self.tracking = "cgroup"
+                else:  # the kernel refused it the cgroup: without (the DUT is not running yet)
+                    self._cgroup.remove(0.0)
+                    self._cgroup = None
+                    self._start_subreaper()
+                assert p.stdin is not None
+                p.stdin.write(b"go\n")
+                p.stdin.close()
+            except BaseException:
+                p.kill()
+                p.wait()
+                raise
+        else:
+            if self._cgroup is not None:
                 self._cgroup.remove(0.0)
                 self._cgroup = None
-            finally:
-                if self._cgroup is not None:
-                    self._cgroup.started()
-        if p is None:
-            if Path("/proc/self/stat").exists():
-                self._subreaper = _acquire_subreaper()
-                self.tracking = "subreaper" if self._subreaper else "token"
+            self._start_subreaper()
             p = subprocess.Popen(list(argv), **kwargs)
         if kwargs.get("start_new_session"):
             self._session = p.pid
         return p
+
+    def _start_subreaper(self) -> None:
+        if Path("/proc/self/stat").exists():
+            self._subreaper = _acquire_subreaper()
+            self.tracking = "subreaper" if self._subreaper else "token"
 
     # ----------------------------------------------------------------------- the end
     def end(self, grace_s: float) -> list[LeftRunning]:

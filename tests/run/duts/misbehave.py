@@ -17,6 +17,8 @@ behaves (one NAV_SOLUTION per step) until bench time ``at_s`` and then does what
     daemon        start a daemon at start-up (``sleep 600``: double fork and ``setsid``,
                   spawn_daemon.py; its id appended to ``pid_file``), then behave
 
+``daemon = true`` starts the daemon in any mode (before the mode's misbehaviour).
+
 ``pid_file``: where to write this process's id (and the child's, for ``ignore_term``),
 one per line, as soon as it starts. ``progress_file``: rewritten with the bench time
 reached (s) every second of bench time.
@@ -62,7 +64,7 @@ class Misbehave(Estimator):
         if self.mode == "exit_at_once":
             _say("misbehave: cannot open the IMU device: no such file", sys.stderr)
             sys.exit(2)
-        if self.mode == "daemon" and self.pid_file:
+        if (self.mode == "daemon" or config.get("daemon")) and self.pid_file:
             from spawn_daemon import start_daemon  # beside this script
 
             _say(f"misbehave: started daemon {start_daemon(self.pid_file)}")
