@@ -183,6 +183,21 @@ def wait_group_gone(pgid: int, timeout_s: float = 5.0) -> bool:
     return True
 
 
+def _descendants(table: dict[int, _Stat], ancestor: int) -> set[int]:
+    """The processes of ``table`` that descend from ``ancestor``."""
+    children: dict[int, list[int]] = {}
+    for pid, st in table.items():
+        children.setdefault(st.ppid, []).append(pid)
+    out: set[int] = set()
+    todo = [ancestor]
+    while todo:
+        for c in children.get(todo.pop(), ()):
+            if c not in out:
+                out.add(c)
+                todo.append(c)
+    return out
+
+
 def _has_token(pid: int, needle: bytes) -> bool:
     try:
         return needle in Path(f"/proc/{pid}/environ").read_bytes().split(b"\0")
@@ -440,8 +455,11 @@ class DutProcesses:
         foreign: list[_Proc] = []
         me, needle = os.getpid(), f"{TOKEN_ENV}={self.token}".encode()
         table = _processes()
+        # a subreaper keeps the DUT's processes among its descendants: only their
+        # environments are read (elsewhere every process's: a token holder may be anywhere)
+        candidates = _descendants(table, me) if self._subreaper else set(table)
         ours = {pid for pid, st in table.items() if pid != me and st.state not in ("Z", "X")
-                and (self._in_session(st) or _has_token(pid, needle))}
+                and (self._in_session(st) or (pid in candidates and _has_token(pid, needle)))}
         for pid in sorted(ours - exclude.keys()):
             if (p := _Proc.open(pid)) is None:
                 continue

@@ -249,3 +249,24 @@ def test_children_of_a_killed_dut_adopted_by_the_bench_are_reaped():
     assert not p.terminated_in_time
     assert p.left_running == []  # ended with its group, not left running
     assert proc_state(child) is None, f"the DUT's child is {proc_state(child)}, not reaped"
+
+
+def test_without_a_subreaper_a_daemon_out_of_the_benchs_descent_is_named_not_killed(tmp_path, monkeypatch):
+    """Where no subreaper can be set (``token``), an orphan goes to init: it carries the
+    run's token but no longer descends from the bench, so it is named, not signalled."""
+    import bench.dut.reaper as reaper
+
+    if subreaper_state():
+        pytest.skip("the process running the tests is a subreaper already")
+    monkeypatch.setattr(reaper, "_acquire_subreaper", lambda: False)
+    pid_file = tmp_path / "pids"
+    procs = DutProcesses(cgroup=False)
+    procs.popen(_dut(pid_file, then="pass")).wait()
+    assert procs.tracking == "token"
+    (daemon,) = wait_for(lambda: pids(pid_file), HANG_S, "the daemon")
+    try:
+        (left,) = procs.end(HANG_S)
+        assert (left.pid, left.ended) == (daemon, "not killed: no longer a descendant of the bench")
+        assert alive(daemon)
+    finally:
+        _kill(daemon)
