@@ -22,8 +22,8 @@ import sys
 
 def start_daemon(pid_file: str, argv: tuple[str, ...] = ("sleep", "600")) -> int:
     """Start ``argv`` as a daemon (double fork and ``setsid``); append its pid to
-    ``pid_file`` and return it."""
-    r, w = os.pipe()
+    ``pid_file`` and return it once the daemon runs ``argv`` (it has called ``exec``)."""
+    r, w = os.pipe()  # close-on-exec: its end is closed when the daemon has exec'd
     middle = os.fork()
     if middle == 0:  # the middle process: a new session, the daemon, then gone
         try:
@@ -31,14 +31,13 @@ def start_daemon(pid_file: str, argv: tuple[str, ...] = ("sleep", "600")) -> int
             os.setsid()
             daemon = os.fork()
             if daemon == 0:
-                os.close(w)
                 os.execvp(argv[0], list(argv))
             os.write(w, str(daemon).encode())
         finally:
             os._exit(0)
     os.close(w)
     with os.fdopen(r, "rb") as fh:
-        daemon = int(fh.read())
+        daemon = int(fh.read())  # to the end: the middle has exited and the daemon exec'd
     os.waitpid(middle, 0)
     with open(pid_file, "a") as fh:
         fh.write(f"{daemon}\n")
