@@ -41,16 +41,13 @@ the bench makes a cgroup it is not made a subreaper at all.
 
 from __future__ import annotations
 
-import contextlib
 import ctypes
 import errno
 import os
-import select
 import shutil
 import signal
 import subprocess
 import threading
-import time
 import uuid
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -58,6 +55,17 @@ from pathlib import Path
 from typing import Any
 
 from bench.dut.cgroup import RunCgroup
+from bench.dut.proctable import (
+    Proc,
+    Stat,
+    descendants,
+    descends,
+    has_token,
+    processes,
+    stat,
+    wait_gone,
+    wait_group_gone,
+)
 
 __all__ = ["DutProcesses", "LeftRunning", "TOKEN_ENV", "subreaper_state", "wait_group_gone"]
 
@@ -68,7 +76,6 @@ _PR_SET_CHILD_SUBREAPER = 36
 _PR_GET_CHILD_SUBREAPER = 37
 _HANG_S = 5.0  # a hang guard on a SIGKILLed process to disappear
 _ROUNDS = 10  # kill rounds at most (a process forking as fast as it is killed)
-_MAX_COMMAND = 300
 _SH = "/bin/sh"
 #: what the DUT's first process runs until it is in the cgroup: a line read (none: the
 #: bench failed meanwhile, and nothing is run), then the DUT, on /dev/null
@@ -140,147 +147,6 @@ def _release_subreaper() -> None:
             _prctl(_PR_SET_CHILD_SUBREAPER, ctypes.c_ulong(0))
 
 
-# ------------------------------------------------------------------------------- /proc
-@dataclass(frozen=True)
-class _Stat:
-    ppid: int
-    state: str
-    pgrp: int
-    session: int
-
-
-def _stat(pid: int) -> _Stat | None:
-    """Parent, state letter, process group and session of a process; None if there is none."""
-    try:
-        text = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return None
-    f = text[text.rindex(")") + 2 :].split()
-    return _Stat(int(f[1]), f[0], int(f[2]), int(f[3]))
-
-
-def _processes() -> dict[int, _Stat]:
-    """Every process visible."""
-    out = {}
-    with contextlib.suppress(OSError):
-        for entry in os.listdir("/proc"):
-            if entry.isdigit() and (st := _stat(int(entry))) is not None:
-                out[int(entry)] = st
-    return out
-
-
-def wait_group_gone(pgid: int, timeout_s: float = 5.0) -> bool:
-    """Wait until no live process is left in process group ``pgid`` (one just killed:
-    its members take a moment to exit), at most ``timeout_s`` (a hang guard); whether
-    none is. The group's id cannot be reused while a member exists."""
-    deadline = time.monotonic() + timeout_s
-    pause = 0.001
-    while any(st.pgrp == pgid and st.state not in ("Z", "X") for st in _processes().values()):
-        if time.monotonic() >= deadline:
-            return False
-        time.sleep(pause)
-        pause = min(2 * pause, 0.05)
-    return True
-
-
-def _descendants(table: dict[int, _Stat], ancestor: int) -> set[int]:
-    """The processes of ``table`` that descend from ``ancestor``."""
-    children: dict[int, list[int]] = {}
-    for pid, st in table.items():
-        children.setdefault(st.ppid, []).append(pid)
-    out: set[int] = set()
-    todo = [ancestor]
-    while todo:
-        for c in children.get(todo.pop(), ()):
-            if c not in out:
-                out.add(c)
-                todo.append(c)
-    return out
-
-
-def _has_token(pid: int, needle: bytes) -> bool:
-    try:
-        return needle in Path(f"/proc/{pid}/environ").read_bytes().split(b"\0")
-    except OSError:  # gone, a zombie, or another user's
-        return False
-
-
-def _descends(pid: int, ancestor: int) -> bool:
-    """Whether ``pid`` descends from ``ancestor`` (read now, up the parent chain)."""
-    seen = 0
-    while pid > 1 and seen < 100_000:
-        st = _stat(pid)
-        if st is None:
-            return False
-        pid = st.ppid
-        if pid == ancestor:
-            return True
-        seen += 1
-    return False
-
-
-def _command(pid: int) -> str:
-    try:
-        raw = Path(f"/proc/{pid}/cmdline").read_bytes()
-    except OSError:
-        raw = b""
-    text = raw.rstrip(b"\0").replace(b"\0", b" ").decode("utf-8", "replace")
-    if not text:
-        with contextlib.suppress(OSError):
-            stat = Path(f"/proc/{pid}/stat").read_text()
-            text = stat[stat.index("(") : stat.rindex(")") + 1]
-    return text if len(text) <= _MAX_COMMAND else text[: _MAX_COMMAND - 1] + "…"
-
-
-class _Proc:
-    """A process found: its pidfd where the kernel has them (so its id can be reused
-    without it being hit), its command line."""
-
-    def __init__(self, pid: int, fd: int | None):
-        self.pid = pid
-        self.fd = fd
-        self.command = _command(pid)
-
-    @classmethod
-    def open(cls, pid: int) -> _Proc | None:
-        """The process, None if it is gone."""
-        try:
-            return cls(pid, os.pidfd_open(pid))
-        except ProcessLookupError:
-            return None
-        except (OSError, AttributeError):  # no pidfds (Linux < 5.3): by id
-            return cls(pid, None) if _stat(pid) is not None else None
-
-    def signal(self, sig: int) -> None:
-        with contextlib.suppress(ProcessLookupError, PermissionError):
-            if self.fd is not None:
-                signal.pidfd_send_signal(self.fd, sig)
-            else:
-                os.kill(self.pid, sig)
-
-    def gone(self) -> bool:
-        """Whether it has exited (a zombie is gone)."""
-        if self.fd is not None:
-            p = select.poll()
-            p.register(self.fd, select.POLLIN)
-            return bool(p.poll(0))
-        st = _stat(self.pid)
-        return st is None or st.state in ("Z", "X")
-
-    def reap(self) -> None:
-        """Reap it if it is a zombie child of this process (an orphan it adopted)."""
-        with contextlib.suppress(ChildProcessError, OSError):
-            if self.fd is not None and hasattr(os, "P_PIDFD"):
-                os.waitid(os.P_PIDFD, self.fd, os.WEXITED | os.WNOHANG)
-            elif (st := _stat(self.pid)) is not None and st.ppid == os.getpid() and st.state == "Z":
-                os.waitpid(self.pid, os.WNOHANG)  # a zombie child keeps its id until reaped
-
-    def close(self) -> None:
-        if self.fd is not None:
-            os.close(self.fd)
-            self.fd = None
-
-
 def _check_executable(name: str, cwd: Any, env: dict[str, str]) -> None:
     """Raise the :class:`OSError` Popen would raise when ``name`` cannot be executed (the
     DUT is started through a shell that would only exit 127)."""
@@ -292,17 +158,6 @@ def _check_executable(name: str, cwd: Any, env: dict[str, str]) -> None:
             raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), name)
     elif shutil.which(name, path=env.get("PATH", os.defpath)) is None:
         raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), name)
-
-
-def _wait_gone(procs: Sequence[_Proc], timeout_s: float) -> None:
-    deadline = time.monotonic() + timeout_s
-    pause = 0.001
-    while not all(p.gone() for p in procs):
-        left = deadline - time.monotonic()
-        if left <= 0:
-            return
-        time.sleep(min(pause, left))
-        pause = min(2 * pause, 0.05)
 
 
 # ------------------------------------------------------------------------------- runs
@@ -320,7 +175,7 @@ class DutProcesses:
         self._cgroup = RunCgroup.create(self.token) if cgroup else None
         self._subreaper = False
         self._session: int | None = None  # the DUT's own session (start_new_session)
-        self._zombies: dict[int, _Proc] = {}
+        self._zombies: dict[int, Proc] = {}
         self._left: list[LeftRunning] | None = None
 
     @property
@@ -385,7 +240,7 @@ class DutProcesses:
         if self._left is not None:
             return self._left
         self._left = []
-        found: dict[int, tuple[_Proc, str | None]] = {}
+        found: dict[int, tuple[Proc, str | None]] = {}
         looked = False
         try:
             if self.tracking != "none":
@@ -397,7 +252,7 @@ class DutProcesses:
                     found[p.pid] = (p, None)
                     p.signal(signal.SIGTERM)
                 looked = True
-                _wait_gone(live, grace_s)
+                wait_gone(live, grace_s)
                 for p in live:
                     ended = "ended on SIGTERM" if p.gone() else f"killed (SIGKILL) {grace_s:g} s after SIGTERM"
                     found[p.pid] = (p, ended)
@@ -420,7 +275,7 @@ class DutProcesses:
     def _populated(self) -> bool:
         return self._cgroup is not None and self._cgroup.populated()
 
-    def _kill_all(self, found: dict[int, tuple[_Proc, str | None]]) -> None:
+    def _kill_all(self, found: dict[int, tuple[Proc, str | None]]) -> None:
         """SIGKILL what is left and whatever is found meanwhile, then reap it."""
         for _ in range(_ROUNDS):
             if self._cgroup is not None:
@@ -434,52 +289,52 @@ class DutProcesses:
             for p in more:
                 p.signal(signal.SIGKILL)
                 found[p.pid] = (p, "killed (SIGKILL): started during the shutdown")
-            _wait_gone([p for p, _ in found.values()], _HANG_S)
+            wait_gone([p for p, _ in found.values()], _HANG_S)
             if not more:
                 break
         for p, _ended in found.values():
             p.reap()
 
-    def _find(self, exclude: dict[int, Any]) -> tuple[list[_Proc], list[_Proc]]:
+    def _find(self, exclude: dict[int, Any]) -> tuple[list[Proc], list[Proc]]:
         """``(live processes of the DUT, token holders out of the bench's descent)``,
         but those in ``exclude``; notes the zombies to reap."""
-        live: list[_Proc] = []
+        live: list[Proc] = []
         if self._cgroup is not None:
             for pid in self._cgroup.pids():
-                if pid not in exclude and (p := _Proc.open(pid)) is not None:
+                if pid not in exclude and (p := Proc.open(pid)) is not None:
                     if self._cgroup.holds(pid) and not p.gone():  # through the pidfd's process
                         live.append(p)
                     else:
                         p.close()
             return live, []
-        foreign: list[_Proc] = []
+        foreign: list[Proc] = []
         me, needle = os.getpid(), f"{TOKEN_ENV}={self.token}".encode()
-        table = _processes()
+        table = processes()
         # a subreaper keeps the DUT's processes among its descendants: only their
         # environments are read (elsewhere every process's: a token holder may be anywhere)
-        candidates = _descendants(table, me) if self._subreaper else set(table)
+        candidates = descendants(table, me) if self._subreaper else set(table)
         ours = {pid for pid, st in table.items() if pid != me and st.state not in ("Z", "X")
-                and (self._in_session(st) or (pid in candidates and _has_token(pid, needle)))}
+                and (self._in_session(st) or (pid in candidates and has_token(pid, needle)))}
         for pid in sorted(ours - exclude.keys()):
-            if (p := _Proc.open(pid)) is None:
+            if (p := Proc.open(pid)) is None:
                 continue
-            st = _stat(pid)  # checked again, now that the pidfd holds the process
+            st = stat(pid)  # checked again, now that the pidfd holds the process
             if st is None or st.state in ("Z", "X") or pid == self._session:
                 p.close()
-            elif self._in_session(st) or (_has_token(pid, needle) and _descends(pid, me)):
+            elif self._in_session(st) or (has_token(pid, needle) and descends(pid, me)):
                 live.append(p)
-            elif _has_token(pid, needle):
+            elif has_token(pid, needle):
                 foreign.append(p)
             else:
                 p.close()
         for pid, st in table.items():  # zombies that are (or will be) adopted
             if (st.state == "Z" and pid not in self._zombies and pid != self._session
                     and (st.ppid in ours or (st.ppid == me and self._in_session(st)))
-                    and (z := _Proc.open(pid)) is not None):
+                    and (z := Proc.open(pid)) is not None):
                 self._zombies[pid] = z
         return live, foreign
 
-    def _in_session(self, st: _Stat) -> bool:
+    def _in_session(self, st: Stat) -> bool:
         """In the DUT's own session or process group (its id cannot be reused while a
         member lives, and no other process can join it)."""
         return self._session is not None and self._session in (st.session, st.pgrp)
