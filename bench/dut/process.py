@@ -7,9 +7,11 @@ bench's own interpreter, for ``{python} -m bench.dut.harness``) filled in, in a
 session of its own (so the whole process group can be ended), captures its standard
 output and error line by line with bench timestamps, notices when it dies, and on
 shutdown sends SIGTERM to the group, waits the shutdown timeout, then SIGKILLs the
-group: no process of the group is left whatever the DUT does (a DUT that puts children
-in sessions of their own, or a bench killed with SIGKILL, are the limits; see
-``docs/run_engine.md``, "How a run ends").
+group. Every other process the DUT started -- a daemon in a session of its own, a
+process group of its own -- is then found (the run's cgroup, or the bench as a child
+subreaper and a token in the DUT's environment: :mod:`bench.dut.reaper`), ended the same
+way (SIGTERM, the shutdown timeout, SIGKILL) and named in :attr:`DutProcess.left_running`.
+A bench killed with SIGKILL is the limit; see ``docs/run_engine.md``, "How a run ends".
 
 The leader is not reaped before the group has been killed: while it is a zombie its
 process id, which is the group id, cannot be reused, so the final SIGKILL can never hit
@@ -31,6 +33,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from bench.dut.reaper import DutProcesses, LeftRunning, wait_group_gone
 from bench.errors import ConfigError, DutError
 
 __all__ = ["DutProcess", "LogLine", "fill_placeholders", "uses_placeholder", "PLACEHOLDERS", "describe_exit",
@@ -93,6 +96,8 @@ class DutProcess:
         Time allowed between SIGTERM and SIGKILL (ICD: 5 s).
     on_line:
         Called from the reader threads with each output line (optional).
+    cgroup:
+        Track its processes in a cgroup where one can be made (False: the subreaper).
     """
 
     def __init__(
@@ -104,6 +109,7 @@ class DutProcess:
         shutdown_timeout_s: float = 5.0,
         on_line: Callable[[LogLine], None] | None = None,
         keep_lines: int = 10_000,
+        cgroup: bool = True,
     ):
         self.argv = list(argv)
         self.shutdown_timeout_s = shutdown_timeout_s
@@ -117,9 +123,12 @@ class DutProcess:
         self.ended: str | None = None
         #: Output lines lost because nobody took them before ``keep_lines`` more arrived.
         self.lines_dropped = 0
+        #: Processes of the DUT found running after its group was ended (then ended too).
+        self.left_running: list[LeftRunning] = []
+        self._procs = DutProcesses(cgroup=cgroup)
         full_env = {**os.environ, **(env or {})}
         try:
-            self._p = subprocess.Popen(
+            self._p = self._procs.popen(
                 self.argv,
                 cwd=cwd,
                 env=full_env,
@@ -129,7 +138,13 @@ class DutProcess:
                 start_new_session=True,
             )
         except OSError as exc:
+            self._procs.end(0.0)
             raise DutError(f"cannot start the DUT {self.argv[0]!r}: {exc}") from None
+        except BaseException:
+            self._procs.end(0.0)
+            raise
+        #: How its processes are tracked: ``cgroup``, ``subreaper``, ``token`` or ``none``.
+        self.tracking = self._procs.tracking
         self._threads = [
             threading.Thread(target=self._pump, args=(self._p.stdout, "stdout"), daemon=True),
             threading.Thread(target=self._pump, args=(self._p.stderr, "stderr"), daemon=True),
@@ -202,7 +217,8 @@ class DutProcess:
     def close(self) -> int | None:
         """SIGTERM the process group, wait up to the shutdown timeout for the leader, then
         SIGKILL the whole group (children that outlived the leader too) and reap the leader;
-        returns the exit code. Idempotent; an interrupt while waiting still kills the group."""
+        then end every other process of the DUT left (:attr:`left_running`). Returns the
+        exit code. Idempotent; an interrupt while waiting still kills them all."""
         if self._closed:
             return self.exit_code
         self._closed = True
@@ -216,8 +232,13 @@ class DutProcess:
         finally:
             # the leader is at most a zombie here, so its group id is still its own
             self._signal_group(signal.SIGKILL)
-            with contextlib.suppress(subprocess.TimeoutExpired):  # SIGKILL cannot be refused
-                self._p.wait(timeout=5.0)
+            try:
+                with contextlib.suppress(subprocess.TimeoutExpired):  # SIGKILL cannot be refused
+                    self._p.wait(timeout=5.0)
+                wait_group_gone(self._p.pid)  # killed: not to be taken for processes left running
+            finally:
+                # a daemon holding the output pipes is ended before they are drained
+                self.left_running = self._procs.end(self.shutdown_timeout_s)
             self.wait_output(2.0)
         if self._p.returncode is not None:
             self.exit_code = self._p.returncode

@@ -11,13 +11,18 @@ For one run of a case (``[dut] kind = "batch"``, keys in :mod:`bench.acceptance.
    and the bench's working folder; in the case's folder or ``[dut] cwd`` relative to it;
    stdin closed, its stdout and stderr kept in ``<work>/stdout.txt``/``stderr.txt`` and
    recorded on ``/dut/log``) with its timeout, in a process group of its own (killed whole
-   on timeout);
+   on timeout); whatever it started that is still running when it ends -- a daemon, a
+   process in the background -- is ended (SIGTERM, :data:`GRACE_S`, SIGKILL;
+   :mod:`bench.dut.reaper`) and named in the recording's ``run_start``
+   (``dut_left_running``), which scoring puts in the run's notes (the verdict is not
+   changed by it);
 4. its result ``<work>/output/result.nav`` (and ``result_std.txt`` if written) is imported
    (:mod:`~bench.exchange.nav_import`) into the run's recording, which is judged as any.
 
 A command that cannot be started, exits non-zero, runs past its timeout, writes no or a
 malformed result, or a result that floods (more epochs within a second of bench time than
-an external DUT may send frames: :func:`flooded`) ends the run ``dut_failed`` with the reason (FAIL: the DUT misbehaved,
+an external DUT may send frames: :func:`flooded`) ends the run ``dut_failed`` with the
+reason (FAIL: the DUT misbehaved,
 the bench did its part). A failure of the bench's own steps (synthesis, export, writing
 the recording) raises or ends the run ``error`` (ERROR): in particular inputs that came out
 unfinished or damaged are not given to the command; the run's recording is made from them
@@ -41,6 +46,7 @@ from bench.acceptance.batch_spec import BatchSpec
 from bench.acceptance.case import TestCase
 from bench.acceptance.runner import Progress
 from bench.dut.process import LogLine
+from bench.dut.reaper import DutProcesses, LeftRunning, wait_group_gone
 from bench.errors import ConfigError
 from bench.exchange.i2nav_export import export_i2nav
 from bench.exchange.nav_import import NavFileError, read_nav_result, run_clock, write_output
@@ -56,14 +62,29 @@ __all__ = ["BatchRunner", "run_command", "CommandOutcome", "flooded"]
 
 _WINDOW_NS = 10_000_000_000
 _MAX_LOG_LINES = 10_000
+#: Time a process the command left running has between SIGTERM and SIGKILL, s (the ICD's
+#: shutdown timeout of a DUT process).
+GRACE_S = 5.0
 
 
 class CommandOutcome:
-    """How the command ended: ``failure`` is None when it exited 0 in time."""
+    """How the command ended: ``failure`` is None when it exited 0 in time; ``left_running``
+    the processes it left running (each ended by the bench, :mod:`bench.dut.reaper`) and
+    ``tracking`` how they were found."""
 
-    def __init__(self, failure: str | None, lines: list[LogLine]):
+    def __init__(self, failure: str | None, lines: list[LogLine], left_running: list[LeftRunning] | None = None,
+                 tracking: str = "none"):
         self.failure = failure
         self.lines = lines
+        self.left_running = list(left_running or [])
+        self.tracking = tracking
+
+    @property
+    def run_start(self) -> dict[str, str]:
+        """What the recording's ``run_start`` says of the command's processes (scoring
+        names the ones left running in the run's notes)."""
+        return {"dut_process_tracking": self.tracking,
+                "dut_left_running": json.dumps([x.as_dict() for x in self.left_running])}
 
 
 def _tail(lines: list[LogLine], n: int = 5) -> str:
@@ -79,35 +100,44 @@ def _read_lines(path: Path, stream: str) -> list[LogLine]:
     return [LogLine(0, stream, ln) for ln in text.splitlines()[-_MAX_LOG_LINES:]]
 
 
-def run_command(argv: list[str], cwd: Path, timeout_s: float, work: Path) -> CommandOutcome:
+def run_command(argv: list[str], cwd: Path, timeout_s: float, work: Path, *, cgroup: bool = True) -> CommandOutcome:
     """Run ``argv`` to its end or its timeout (its process group killed then); stdout and
-    stderr go to ``work/stdout.txt`` and ``work/stderr.txt``."""
+    stderr go to ``work/stdout.txt`` and ``work/stderr.txt``. Whatever it started that is
+    still running then -- its group's processes, a daemon -- gets SIGTERM, at most
+    :data:`GRACE_S`, then SIGKILL, and is named in ``left_running`` (``cgroup``: track its
+    processes in a cgroup where one can be made; False: the subreaper)."""
     out_p, err_p = work / "stdout.txt", work / "stderr.txt"
-    with open(out_p, "wb") as out, open(err_p, "wb") as err:
-        try:
-            proc = subprocess.Popen(argv, cwd=cwd, stdin=subprocess.DEVNULL, stdout=out, stderr=err,
-                                    start_new_session=True)
-        except OSError as exc:
-            return CommandOutcome(f"cannot start the batch DUT {argv[0]!r}: {exc.strerror or exc}", [])
-        code: int | None = None
-        try:
-            code = proc.wait(timeout=timeout_s)
-        except subprocess.TimeoutExpired:
-            pass
-        finally:
-            if code is None:
-                with contextlib.suppress(ProcessLookupError):
-                    os.killpg(proc.pid, signal.SIGKILL)  # the group we started (start_new_session)
-                proc.wait()
+    procs = DutProcesses(cgroup=cgroup)
+    left: list[LeftRunning] = []
+    try:
+        with open(out_p, "wb") as out, open(err_p, "wb") as err:
+            try:
+                proc = procs.popen(argv, cwd=cwd, stdin=subprocess.DEVNULL, stdout=out, stderr=err,
+                                   start_new_session=True)
+            except OSError as exc:
+                return CommandOutcome(f"cannot start the batch DUT {argv[0]!r}: {exc.strerror or exc}", [])
+            code: int | None = None
+            try:
+                code = proc.wait(timeout=timeout_s)
+            except subprocess.TimeoutExpired:
+                pass
+            finally:
+                if code is None:
+                    with contextlib.suppress(ProcessLookupError):
+                        os.killpg(proc.pid, signal.SIGKILL)  # the group we started (start_new_session)
+                    proc.wait()
+                    wait_group_gone(proc.pid)  # killed: not to be taken for processes left running
+    finally:
+        left = procs.end(GRACE_S)
     lines = _read_lines(out_p, "stdout") + _read_lines(err_p, "stderr")
     if code is None:
         return CommandOutcome(f"the batch DUT did not finish within its timeout of {timeout_s:g} s (killed)"
-                              + _tail(lines), lines)
+                              + _tail(lines), lines, left, procs.tracking)
     if code != 0:
         how = f"on signal {signal.Signals(-code).name}" if code < 0 and -code in signal.valid_signals() \
             else f"with code {code}"
-        return CommandOutcome(f"the batch DUT exited {how}" + _tail(lines), lines)
-    return CommandOutcome(None, lines)
+        return CommandOutcome(f"the batch DUT exited {how}" + _tail(lines), lines, left, procs.tracking)
+    return CommandOutcome(None, lines, left, procs.tracking)
 
 
 def flooded(solutions: np.ndarray, qualities: np.ndarray, per_s: int) -> str | None:
@@ -194,7 +224,8 @@ class BatchRunner:
                     failure = flooded(result.solutions, result.qualities, run.dut.flood_frames_per_s)
         end = ("dut_failed", failure) if failure is not None else ("complete", "")
         write_output(inputs, out, result, end=end, log=outcome.lines, overwrite=True, made_by="batch",
-                     start_extra={"batch_command": json.dumps(argv), "batch_work": str(work), "batch_cwd": str(cwd)})
+                     start_extra={"batch_command": json.dumps(argv), "batch_work": str(work), "batch_cwd": str(cwd),
+                                  **outcome.run_start})
         inputs.unlink(missing_ok=True)
         if progress is not None:
             total = (run.duration_ns or 0) * 1e-9

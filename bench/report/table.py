@@ -4,7 +4,9 @@ One row per criterion and variant: case, variant, criterion, requirement, what i
 measured over which window, the value, the limit, the paper's figure and the verdict (a
 negative control's row says ``(control)`` and ``must fail``: its PASS is the limit failing
 it);
-then one row per case with its verdict and what went wrong.
+then one row per case with its verdict and what went wrong, and the runs' notes (what
+was recorded without changing a verdict: a damaged source accepted, processes the DUT
+left running).
 
 The rows and lines are built raw; the text table shows them through
 :func:`~bench.textsafe.for_terminal` and the Markdown one through
@@ -20,7 +22,7 @@ from bench.acceptance.judge import CaseResult
 from bench.report.results import criterion_json
 from bench.textsafe import for_markdown, for_terminal
 
-__all__ = ["summary_rows", "text_table", "markdown_table", "case_lines", "reason_lines"]
+__all__ = ["summary_rows", "text_table", "markdown_table", "case_lines", "reason_lines", "note_lines"]
 
 HEADER = ("case", "variant", "criterion", "requirement", "metric / window", "value", "limit", "paper", "verdict")
 
@@ -79,7 +81,7 @@ def text_table(cases: Sequence[CaseResult], width: int = 40) -> str:
         lines.append("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip())
         if k == 0:
             lines.append("  ".join("-" * w for w in widths))
-    notes = [for_terminal(line) for line in (*case_lines(cases), *reason_lines(cases))]
+    notes = [for_terminal(line) for line in (*case_lines(cases), *reason_lines(cases), *note_lines(cases))]
     return "\n".join([*lines, "", *notes])
 
 
@@ -93,6 +95,12 @@ def reason_lines(cases: Sequence[CaseResult]) -> list[str]:
                 label = res.label
                 out.append(f"  {cr.case_id} {label}: {res.verdict}: {res.aggregate.reason}")
     return out
+
+
+def note_lines(cases: Sequence[CaseResult]) -> list[str]:
+    """The runs' notes, one line each (raw text: escape it for where it is shown)."""
+    return [f"  {cr.case_id} seed {r.seed}{'/' + r.variant if r.variant else ''}: note: {note}"
+            for cr in cases for r in cr.runs for note in r.notes]
 
 
 def case_lines(cases: Sequence[CaseResult]) -> list[str]:
@@ -123,4 +131,5 @@ def markdown_table(cases: Sequence[CaseResult]) -> str:
         out.append("| " + " | ".join(for_markdown(c) for c in r) + " |")
     out.append("")
     out.extend(f"- {for_markdown(line)}" for line in case_lines(cases))
+    out.extend(f"- {for_markdown(line.strip())}" for line in note_lines(cases))
     return "\n".join(out) + "\n"

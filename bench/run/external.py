@@ -20,10 +20,12 @@ a JSON file (``{config}``), starts the command line, and then either
 A DUT that dies, does not answer, never starts, stops reading its serial lines, or
 floods the bus ends the run with a :class:`~bench.errors.DutError` naming what happened
 (with its exit status and last output lines when it died); shutdown always ends the
-whole process group. The DUT's standard output and error are recorded as they come
-(lockstep: after each step; real time: after the last emission), and so are the bytes
-it writes on its serial lines, drained by a thread per line so that it never blocks
-(recorded after each step, in real time after the last emission, and at shutdown).
+whole process group, then every other process the DUT started (a daemon: found, ended
+and listed in ``dut_exit`` ``left_running``; :mod:`bench.dut.reaper`). The DUT's
+standard output and error are recorded as they come (lockstep: after each step; real
+time: after the last emission), and so are the bytes it writes on its serial lines,
+drained by a thread per line so that it never blocks (recorded after each step, in real
+time after the last emission, and at shutdown).
 """
 
 from __future__ import annotations
@@ -373,6 +375,9 @@ class ExternalDut(RealtimeExchange):
                     "ended": p.ended,
                     "terminated_in_time": p.terminated_in_time,
                     "pid": p.pid,
+                    # its processes found after its group was ended, ended too (named in the notes)
+                    "process_tracking": p.tracking,
+                    "left_running": [x.as_dict() for x in p.left_running],
                 }
                 if p.lines_dropped:
                     facts["lines_dropped"] = p.lines_dropped

@@ -82,6 +82,8 @@ class RunData:
     complete: False when the file was never finished (the run was killed).
     damage: one line per damaged stretch of the file that could not be read (skipped).
     run_start, run_end: metadata records (``run_end`` None if absent).
+    dut_exit: the ``dut_exit`` metadata record of an external DUT (how its process
+        ended, the processes it left running), empty if absent.
     truth: ``/truth`` records (TRUTH_DTYPE), sorted by ``t_ns``; None if absent.
     nav, quality: ``/dut/nav_solution`` and ``/dut/nav_quality`` records as recorded
         (arrival order); None if absent.
@@ -100,6 +102,7 @@ class RunData:
     damage: list[str] = field(default_factory=list)
     run_start: dict[str, str] = field(default_factory=dict)
     run_end: dict[str, str] | None = None
+    dut_exit: dict[str, str] = field(default_factory=dict)
     truth: np.ndarray | None = None
     nav: np.ndarray | None = None
     quality: np.ndarray | None = None
@@ -172,6 +175,7 @@ def _load(reader: RecordingReader, path: Path) -> RunData:
     run = RunData(path=path, complete=reader.finished, damage=reader.damage_lines())
     run.run_start = dict(meta.get("run_start", {}))
     run.run_end = dict(meta["run_end"]) if "run_end" in meta else None
+    run.dut_exit = dict(meta.get("dut_exit", {}))
     truth = _columnar(reader, topics, TRUTH)
     if truth is not None:
         order = np.argsort(truth["t_ns"], kind="stable")

@@ -25,6 +25,7 @@ import numpy as np
 
 from bench.record.provenance import source_issues
 from bench.scoring.data import NAV_SOLUTION, TIMING, TRUTH, RunData
+from bench.scoring.leftovers import left_running_notes
 
 __all__ = ["Integrity", "check_integrity", "DUT_STATUSES", "OK_STATUSES", "UNCLEAR_STATUS"]
 
@@ -73,6 +74,7 @@ def check_integrity(run: RunData, budget_ns: int | None = None) -> Integrity:
     issues, notes = source_issues(run.run_start)
     out.bench += issues
     out.notes += notes
+    out.notes += left_running_notes(run.run_start, run.dut_exit)  # noted, not judged
     if run.truth is None or len(run.truth) < 2:
         out.bench.append(f"no truth recorded ({TRUTH})")
     if (run.nav is None or len(run.nav) == 0) and not out.dut:

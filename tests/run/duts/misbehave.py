@@ -15,6 +15,10 @@ behaves (one NAV_SOLUTION per step) until bench time ``at_s`` and then does what
     never_ready   never open the links (sleeps), so it never answers
     ignore_term   ignore SIGTERM and start a child that ignores it too; otherwise fine
     slow          behave, but take ``delay_s`` of wall time per step (long runs)
+    daemon        start a daemon at start-up (``sleep 600``: double fork and ``setsid``,
+                  spawn_daemon.py; its id appended to ``pid_file``), then behave
+
+``daemon = true`` starts the daemon in any mode (before the mode's misbehaviour).
 
 ``pid_file``: where to write this process's id (and the child's, for ``ignore_term``),
 one per line, as soon as it starts. ``progress_file``: rewritten with the bench time
@@ -36,7 +40,7 @@ from bench.dut.estimator import DutInputs, Estimator, EstimatorOutput, register_
 from bench.topics import NAV_SOLUTION_DTYPE
 
 MODES = ("crash_exit", "crash_abort", "crash_raise", "sigkill", "late_epoch", "hang", "flood", "exit_at_once",
-         "never_ready", "ignore_term", "slow")
+         "never_ready", "ignore_term", "slow", "daemon")
 
 
 def _say(text: str, stream=sys.stdout) -> None:
@@ -61,6 +65,10 @@ class Misbehave(Estimator):
         if self.mode == "exit_at_once":
             _say("misbehave: cannot open the IMU device: no such file", sys.stderr)
             sys.exit(2)
+        if (self.mode == "daemon" or config.get("daemon")) and self.pid_file:
+            from spawn_daemon import start_daemon  # beside this script
+
+            _say(f"misbehave: started daemon {start_daemon(self.pid_file)}")
         if self.mode == "never_ready":
             _say("misbehave: warming up the gyros ...")
             time.sleep(600)
