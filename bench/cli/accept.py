@@ -33,9 +33,10 @@ import json
 import shlex
 import sys
 import time
+from collections.abc import Sequence
 from contextlib import ExitStack
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from bench.acceptance.interrupted import Interruption, signal_name
 from bench.cli.app import EXIT_ERROR, EXIT_FAIL, EXIT_OK, EXIT_USAGE
@@ -43,6 +44,7 @@ from bench.cli.progress import progress_bar
 from bench.textsafe import for_terminal
 
 if TYPE_CHECKING:
+    from bench.acceptance.judge import CaseResult
     from bench.report.outputs import Ledger
 
 __all__ = ["register", "exit_code", "recording_targets", "clear_recordings", "reproduction", "write_suite_reports"]
@@ -209,9 +211,9 @@ def _enter(ledger: Ledger, meant: list[Path], done: list[Path], why: str) -> Non
 
 def write_suite_reports(
     command: str,
-    results: list,
+    results: Sequence[CaseResult],
     out: Path,
-    run_info: dict,
+    run_info: dict[str, Any],
     *,
     interruption: Interruption | None,
     plots: bool,
