@@ -3,9 +3,9 @@
 :func:`execute_run` is what an executor calls. It loads the case from its file (a
 :class:`~bench.campaign.plan.PlannedRun` is small and picklable), runs it through the
 case's runner into ``<dir>/recordings/<case id>/<key[:16]>/``, judges the recording as
-``bench score`` would, and writes ``<dir>/runs/<key>.json`` atomically (a temporary file
-then :func:`os.replace`) only once the recording is finished. It returns that record, a
-small dict of numbers and strings, never arrays.
+``bench score`` would, and writes ``<dir>/runs/<key>.json`` atomically
+(:mod:`bench.atomic`: a temporary file, fsync, then a rename) only once the recording is
+finished. It returns that record, a small dict of numbers and strings, never arrays.
 
 A run interrupted (Ctrl-C, SIGTERM) writes no record, so the next campaign runs it again;
 a run that crashed or could not be executed is recorded ERROR with its reason, its
@@ -20,11 +20,10 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from pathlib import Path
 from typing import Any
 
+from bench import atomic
 from bench.campaign.plan import PlannedRun
 from bench.errors import BenchError
 
@@ -118,17 +117,8 @@ def sweep_axes(case_file: str, point: Any) -> list[list[Any]] | None:
 
 
 def write_atomic(path: Path, data: dict[str, Any]) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            json.dump(data, f, indent=1, sort_keys=True, allow_nan=True)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    """Write ``data`` as JSON to ``path`` whole or not at all (:mod:`bench.atomic`)."""
+    atomic.write_atomic(path, json.dumps(data, indent=1, sort_keys=True, allow_nan=True))
 
 
 def execute_run(run: PlannedRun, out_dir: str) -> dict[str, Any]:

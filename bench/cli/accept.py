@@ -8,9 +8,17 @@ certification report ``report.html`` and ``report.pdf`` (:mod:`bench.cli.report`
 ``--no-report`` leaves it out).
 
 Exit codes: 0 every case PASS or MARGINAL; 1 a case FAILed; 2 a case file is malformed
-(or bad usage); 3 a case could not be judged (ERROR), or a report could not be written.
-A case that crashes is that case's ERROR (:mod:`bench.acceptance.suite`); the suite goes
-on and every report is still written (a report that fails does not stop the others).
+(or bad usage); 3 a case could not be judged (ERROR), a report could not be written, or
+the suite was interrupted. A case that crashes is that case's ERROR
+(:mod:`bench.acceptance.suite`); the suite goes on and every report is still written (a
+report that fails does not stop the others).
+
+Every report is written whole or not at all (:mod:`bench.atomic`); when one could not be
+written (a full disk), stderr names it with the reason and one line lists exactly the
+files written and those not written (:func:`write_suite_reports`). An interrupted suite
+(Ctrl-C, SIGTERM) still writes the reports of the cases that finished, marked incomplete
+(the record's ``interrupted`` block, the summaries' first line, a JUnit error, the
+report's banner), and exits 3.
 
 Recordings are evidence: before anything runs, the recordings the suite would write are
 looked for, and an existing one is not overwritten without ``--force`` (nor, even with
@@ -25,14 +33,21 @@ import json
 import shlex
 import sys
 import time
+from collections.abc import Sequence
 from contextlib import ExitStack
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
+from bench.acceptance.interrupted import Interruption, signal_name
 from bench.cli.app import EXIT_ERROR, EXIT_FAIL, EXIT_OK, EXIT_USAGE
 from bench.cli.progress import progress_bar
 from bench.textsafe import for_terminal
 
-__all__ = ["register", "exit_code", "recording_targets", "clear_recordings", "reproduction"]
+if TYPE_CHECKING:
+    from bench.acceptance.judge import CaseResult
+    from bench.report.outputs import Ledger
+
+__all__ = ["register", "exit_code", "recording_targets", "clear_recordings", "reproduction", "write_suite_reports"]
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -157,26 +172,102 @@ def reproduction(args: argparse.Namespace) -> str:
     return shlex.join(parts)
 
 
-def _report(record: Path, out: Path, *, figures: bool, quiet: bool) -> dict[str, Path]:
-    """report.html and report.pdf of the suite just judged (figures from its recordings)."""
+def _report(record: Path, out: Path, ledger: Ledger, *, figures: bool, quiet: bool) -> dict[str, Path]:
+    """report.html and report.pdf of the suite just judged (figures from its recordings),
+    each entered in ``ledger`` as written or not (a failure is noted there, an interrupt
+    goes on once it is)."""
     from bench.report.build import build_report, commands_for, folder_locator
+    from bench.report.outputs import crash_reason
 
-    results = json.loads(record.read_text(encoding="utf-8"))
-    command, rescore = commands_for(results)
-    with progress_bar("report: figures", 1, unit="recordings", enabled=figures and not quiet) as bar:
-        files = build_report(results, out, locate=folder_locator(out), figures=figures, command=command,
-                             rescore_command=rescore, progress=bar)
+    meant = [out / "report.html", out / "report.pdf"]
+    done: list[Path] = []
+    try:
+        results = json.loads(record.read_text(encoding="utf-8"))
+        command, rescore = commands_for(results)
+        with progress_bar("report: figures", 1, unit="recordings", enabled=figures and not quiet) as bar:
+            files = build_report(results, out, locate=folder_locator(out), figures=figures, command=command,
+                                 rescore_command=rescore, progress=bar, written=done.append)
+    except Exception as exc:  # the record is written: the run's verdict stands, the exit code says ERROR
+        why = crash_reason("report.html/report.pdf", exc, out)
+        _enter(ledger, meant, done, why)
+        return {}
+    except KeyboardInterrupt as exc:
+        _enter(ledger, meant, done, f"interrupted by {signal_name(exc)}")
+        raise
+    for p in done:
+        ledger.wrote(p)
     for note in files.figure_notes:
         print(for_terminal(f"bench accept: report: {note}"), file=sys.stderr)
     return {"html": files.html, **({"pdf": files.pdf} if files.pdf is not None else {})}
 
 
+def _enter(ledger: Ledger, meant: list[Path], done: list[Path], why: str) -> None:
+    for p in meant:
+        if p in done:
+            ledger.wrote(p)
+        else:
+            ledger.missed(p, why)
+
+
+def write_suite_reports(
+    command: str,
+    results: Sequence[CaseResult],
+    out: Path,
+    run_info: dict[str, Any],
+    *,
+    interruption: Interruption | None,
+    plots: bool,
+    report: bool,
+    quiet: bool,
+) -> tuple[dict[str, Path], list[str], bool]:
+    """Write the reports of a suite (``bench accept``; ``bench run``, one case) and say on
+    stderr what could not be written; returns the files written by kind, the failures that
+    make the exit code 3, and whether an interrupt cut the writing.
+
+    Each file is written whole or not at all; when one was not written, or the suite was
+    interrupted, one line lists exactly the files written and those not written
+    (``bench accept: reports in OUT: written: ...; not written: ...``)."""
+    from bench.report.outputs import Ledger, crash_note, write_reports
+    from bench.report.table import text_table
+
+    ledger = Ledger(out)
+    written: dict[str, Path] = {}
+    cut: KeyboardInterrupt | None = None
+    failures: list[str] = []
+    try:
+        written = write_reports(results, out, run_info, plots=plots, ledger=ledger, interrupted=interruption)
+        if report:
+            if "json" in written:
+                written.update(_report(written["json"], out, ledger, figures=plots, quiet=quiet))
+            else:
+                for name in ("report.html", "report.pdf"):
+                    ledger.missed(out / name, "not attempted: results.json was not written")
+    except KeyboardInterrupt as exc:  # a third signal, or one held while the records were written
+        cut = exc
+    try:
+        print(text_table(results, interrupted=interruption))
+    except Exception as exc:  # the reports are written: say so rather than lose the exit code
+        failures.append(crash_note("the summary table", exc, out))
+    for note in ledger.notes:
+        print(for_terminal(f"{command}: could not write {note}"), file=sys.stderr)
+    for note in failures:
+        print(for_terminal(f"{command}: could not print {note}"), file=sys.stderr)
+    if ledger.not_written or interruption is not None or cut is not None:
+        print(for_terminal(f"{command}: {ledger.line()}"), file=sys.stderr)
+    if interruption is not None:
+        print(for_terminal(f"{command}: the reports are of what finished, marked incomplete "
+                           f"({interruption.cases()})"), file=sys.stderr)
+    if cut is not None:
+        print(for_terminal(f"bench: interrupted by {signal_name(cut)} (while writing the reports)"), file=sys.stderr)
+    elif interruption is not None:
+        print(for_terminal(f"bench: interrupted by {interruption.by}"), file=sys.stderr)
+    return written, ledger.failures + failures, cut is not None
+
+
 def _run(args: argparse.Namespace) -> int:
-    from bench.acceptance.suite import SuiteOptions, collect_cases, run_suite
+    from bench.acceptance.suite import SuiteInterrupted, SuiteOptions, collect_cases, run_suite
     from bench.paths import reports_dir, test_cases_dir
     from bench.record.lock import preflight_folder
-    from bench.report.outputs import crash_note, write_reports
-    from bench.report.table import text_table
 
     paths = args.paths or [str(test_cases_dir())]
     out = Path(args.out) if args.out else reports_dir()
@@ -189,25 +280,21 @@ def _run(args: argparse.Namespace) -> int:
     clear_recordings(_loadable(files), options, args.force)
     started = time.perf_counter()
     when = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
-    results = run_suite(files, options, _Reporter(len(files), args.quiet))
+    interruption = None
+    try:
+        results = run_suite(files, options, _Reporter(len(files), args.quiet))
+    except SuiteInterrupted as exc:  # the reports of what finished are still written, marked incomplete
+        results, interruption = exc.results, exc.interruption
     elapsed = time.perf_counter() - started
     run_info = {"started_utc": when, "elapsed_s": round(elapsed, 3), "paths": [str(p) for p in files],
                 "command": reproduction(args)}
-    failures: list[str] = []
-    written = write_reports(results, out, run_info, plots=not args.no_plots, failures=failures)
-    if not args.no_report and "json" in written:
-        try:
-            written.update(_report(written["json"], out, figures=not args.no_plots, quiet=args.quiet))
-        except Exception as exc:  # the record is written: the run's verdict stands, the exit code says ERROR
-            failures.append(crash_note("report.html/report.pdf", exc, out))
-    try:
-        print(text_table(results))
-    except Exception as exc:  # the reports are written: say so rather than lose the exit code
-        failures.append(crash_note("the summary table", exc, out))
-    for note in failures:
-        print(for_terminal(f"bench accept: could not write {note}"), file=sys.stderr)
+    written, failures, cut = write_suite_reports("bench accept", results, out, run_info, interruption=interruption,
+                                                 plots=not args.no_plots, report=not args.no_report,
+                                                 quiet=args.quiet)
     names = ", ".join(str(written[k]) for k in ("json", "junit", "summary", "html", "pdf") if k in written)
     names = names or "none written"
     print(f"\n{len(results)} case(s) in {elapsed:.1f} s; results: {names}")
+    if interruption is not None or cut:
+        return EXIT_ERROR
     code = exit_code(results)
     return EXIT_ERROR if failures and code in (EXIT_OK, EXIT_FAIL) else code

@@ -168,8 +168,8 @@ class _Interrupt:
         self.count += 1
         name = signal.Signals(signum).name
         if self.count == 2:
-            print(f"bench: {name}: still finishing the recording and stopping the DUT; signal once more to abort that",
-                  file=sys.stderr)
+            print(f"bench: {name}: still finishing the recording and stopping the DUT, or writing the reports; "
+                  "signal once more to abort that", file=sys.stderr)
             return
         if self.count == 1 and shield.hold(name):
             return

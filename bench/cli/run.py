@@ -3,8 +3,14 @@
 Runs every variant and seed of the case (or those chosen), writes the recordings and the
 results under the output folder (``reports/runs/<case id>`` by default) and prints the
 verdicts. Exit codes: 0 PASS or MARGINAL, 1 the DUT failed, 2 usage or configuration
-error, 3 bench error (the run could not be judged). Recordings of an earlier run in the
-output folder are not overwritten without ``--force`` (as ``bench accept``).
+error, 3 bench error (the run could not be judged, a report could not be written, or the
+case was interrupted). Recordings of an earlier run in the output folder are not
+overwritten without ``--force`` (as ``bench accept``).
+
+The reports are written as ``bench accept`` writes them (:func:`bench.cli.accept.write_suite_reports`):
+each whole or not at all, a message listing exactly what was and was not written when one
+could not be, and, when the case is interrupted (Ctrl-C, SIGTERM), the reports of the runs
+that had finished, marked incomplete.
 """
 
 from __future__ import annotations
@@ -53,13 +59,13 @@ def _reproduction(args: argparse.Namespace) -> str:
 
 def _run(args: argparse.Namespace) -> int:
     from bench.acceptance.case import load_case
-    from bench.acceptance.suite import SuiteOptions, refuse_impossible_faults, run_case
-    from bench.cli.accept import _Reporter, clear_recordings, exit_code
+    from bench.acceptance.interrupted import Interruption
+    from bench.acceptance.suite import CaseInterrupted, SuiteOptions, refuse_impossible_faults, run_case
+    from bench.cli.accept import _Reporter, clear_recordings, exit_code, write_suite_reports
+    from bench.cli.app import EXIT_ERROR, EXIT_FAIL, EXIT_OK
     from bench.errors import ConfigError
     from bench.paths import reports_dir
     from bench.record.lock import preflight_folder
-    from bench.report.outputs import write_reports
-    from bench.report.table import text_table
 
     case = load_case(args.case)
     if args.variant is not None:
@@ -79,13 +85,22 @@ def _run(args: argparse.Namespace) -> int:
     clear_recordings([case], options, args.force)
     started = time.perf_counter()
     when = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
-    result = run_case(case, options, _Reporter(1, args.quiet))
+    interruption = None
+    try:
+        result = run_case(case, options, _Reporter(1, args.quiet))
+    except CaseInterrupted as exc:  # the reports of the runs that finished are still written
+        result = exc.result
+        interruption = Interruption(exc.by, (result.case_id,) if exc.finished else (),
+                                    () if exc.finished else (result.case_id,))
     elapsed = time.perf_counter() - started
-    written = write_reports([result], out, {"started_utc": when, "elapsed_s": round(elapsed, 3),
-                                            "paths": [str(args.case)], "command": _reproduction(args)},
-                            plots=not args.no_plots)
-    print(text_table([result]))
+    run_info = {"started_utc": when, "elapsed_s": round(elapsed, 3), "paths": [str(args.case)],
+                "command": _reproduction(args)}
+    written, failures, cut = write_suite_reports("bench run", [result], out, run_info, interruption=interruption,
+                                                 plots=not args.no_plots, report=False, quiet=args.quiet)
     for run in result.runs:
         print(f"  recording: {run.recording}", file=sys.stderr)
-    print(f"\n{case.id} in {elapsed:.1f} s; results: {written['json']}")
-    return exit_code([result])
+    print(f"\n{case.id} in {elapsed:.1f} s; results: {written.get('json') or 'none written'}")
+    if interruption is not None or cut:
+        return EXIT_ERROR
+    code = exit_code([result])
+    return EXIT_ERROR if failures and code in (EXIT_OK, EXIT_FAIL) else code

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from bench.atomic import write_atomic
 from bench.crashlog import one_line
 from bench.report.html import render_html
 from bench.report.model import VERDICT_ORDER, report_model
@@ -134,9 +135,13 @@ def build_report(
     title: str = "Acceptance report",
     progress: Callable[[float, float], None] | None = None,
     stage: Callable[[str], None] | None = None,
+    written: Callable[[Path], None] | None = None,
 ) -> ReportFiles:
     """Write ``report.html`` (and ``report.pdf``) for ``results`` into ``out_dir``;
-    ``progress(done, total)`` counts the recordings drawn, ``stage(text)`` names each step.
+    ``progress(done, total)`` counts the recordings drawn, ``stage(text)`` names each step,
+    ``written(path)`` is told of each file as soon as it is in place (each is written whole
+    or not at all: :mod:`bench.atomic`), so a caller knows what there is if a later step
+    fails or is interrupted.
 
     One pool of ``workers`` processes (the CPU count by default) draws the figures and lays
     out the PDF's parts: the front matter at once, each case as soon as its figures are
@@ -200,7 +205,9 @@ def build_report(
         if stage is not None and jobs:
             stage(f"drew {sum(len(f) for f in figs.values())} figures")
         html_path = out / "report.html"
-        html_path.write_text(render_html(model, figs, **kw), encoding="utf-8")
+        write_atomic(html_path, render_html(model, figs, **kw))
+        if written is not None:
+            written(html_path)
         if stage is not None:
             stage(f"wrote {html_path}")
         parts = [part_futs[k].result() for k in ["front", *case_ids]] if pdf else []
@@ -210,6 +217,8 @@ def build_report(
 
         report_id = str(model["identification"].get("report_id") or "")
         pdf_path = assemble(parts, out / "report.pdf", footer=f"report {report_id}" if report_id else title)
+        if written is not None:
+            written(pdf_path)
         if stage is not None:
             stage(f"wrote {pdf_path}")
     return ReportFiles(html_path, pdf_path, notes)

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from bench.atomic import write_atomic
 from bench.report.build import pool_of
 from bench.report.campaign_figures import figure_jobs
 from bench.report.figures import Figure
@@ -161,7 +162,7 @@ def build_campaign_report(
         if stage is not None:
             stage(f"drew {sum(len(f) for f in figures.values())} figures")
         html_path = out / HTML_NAME
-        html_path.write_text(render_campaign_html(model, figures), encoding="utf-8")
+        write_atomic(html_path, render_campaign_html(model, figures))
         pieces = [laid[p].result() for p in parts] if pdf else []
     pdf_path = None
     if pdf:

@@ -12,6 +12,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from bench.atomic import write_atomic
 from bench.report.compare import MISSING, NEW, SAME, SCHEMA, Comparison, Record, Row
 from bench.report.html import render_string
 from bench.report.results import num
@@ -174,10 +175,7 @@ def html_report(cmp: Comparison) -> str:
 
 
 def write_html(cmp: Comparison, path: str | Path) -> Path:
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(html_report(cmp), encoding="utf-8")
-    return p
+    return write_atomic(path, html_report(cmp))  # whole or not at all (bench.atomic)
 
 
 TEMPLATE = """<!DOCTYPE html>

@@ -20,6 +20,12 @@ FAIL is a ``<failure>``, ERROR an ``<error>`` (never a failure); MARGINAL passes
 a ``verdict = MARGINAL`` property. A case that could not be loaded or run is a
 testcase ``<load>`` with an ``<error>``.
 
+A suite that was interrupted (Ctrl-C, SIGTERM) is marked by one more ``<testsuite
+name="bench accept: interrupted">`` holding a testcase ``interrupted`` with an
+``<error type="INTERRUPTED">`` naming the signal and the cases that did not finish or
+were not run (each of which is also its own ERROR testsuite), so that no CI system can
+read the file as a complete run.
+
 Every text and attribute goes through :func:`~bench.textsafe.xml_safe`: ElementTree
 escapes markup but writes NUL, ESC and lone surrogates raw, which makes the file
 unparsable (a crashed DUT's last output lines are in the reasons).
@@ -31,8 +37,10 @@ import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from pathlib import Path
 
+from bench.acceptance.interrupted import Interruption
 from bench.acceptance.judge import CaseResult
 from bench.acceptance.verdict import Verdict
+from bench.atomic import atomic_file
 from bench.report.identity import run_identity
 from bench.report.results import criterion_json
 from bench.textsafe import xml_safe
@@ -67,10 +75,23 @@ def _flat(j: dict, key: str) -> object:
     return j[head][tail] if tail else j[key]
 
 
-def junit_xml(cases: Sequence[CaseResult], name: str = "bench accept") -> ET.Element:
-    """The ``<testsuites>`` element of an acceptance run."""
+def junit_xml(cases: Sequence[CaseResult], name: str = "bench accept",
+              interrupted: Interruption | None = None) -> ET.Element:
+    """The ``<testsuites>`` element of an acceptance run (``interrupted``: marked so)."""
     root = ET.Element("testsuites", name=name)
     totals = {"tests": 0, "failures": 0, "errors": 0, "skipped": 0}
+    if interrupted is not None:
+        suite = ET.SubElement(root, "testsuite", name=f"{name}: interrupted", tests="1", failures="0", errors="1",
+                              skipped="0")
+        props = ET.SubElement(suite, "properties")
+        ET.SubElement(props, "property", name="interrupted_by", value=interrupted.by)
+        for key in ("finished", "unfinished", "not_run"):
+            ET.SubElement(props, "property", name=key, value=", ".join(getattr(interrupted, key)))
+        tc = ET.SubElement(suite, "testcase", classname=name, name="interrupted")
+        text = interrupted.headline()
+        ET.SubElement(tc, "error", message=text, type="INTERRUPTED").text = text
+        totals["tests"] += 1
+        totals["errors"] += 1
     for cr in cases:
         suite = ET.SubElement(root, "testsuite", name=cr.case_id, file=cr.file)
         props = ET.SubElement(suite, "properties")
@@ -144,11 +165,10 @@ def junit_xml(cases: Sequence[CaseResult], name: str = "bench accept") -> ET.Ele
     return root
 
 
-def write_junit(cases: Sequence[CaseResult], path: str | Path) -> Path:
-    """Write the JUnit XML file."""
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    tree = ET.ElementTree(junit_xml(cases))
+def write_junit(cases: Sequence[CaseResult], path: str | Path, interrupted: Interruption | None = None) -> Path:
+    """Write the JUnit XML file, whole or not at all (:mod:`bench.atomic`)."""
+    tree = ET.ElementTree(junit_xml(cases, interrupted=interrupted))
     ET.indent(tree)
-    tree.write(p, encoding="utf-8", xml_declaration=True)
-    return p
+    with atomic_file(path) as fh:
+        tree.write(fh, encoding="utf-8", xml_declaration=True)
+    return Path(path)

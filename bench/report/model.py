@@ -157,4 +157,13 @@ def report_model(results: Mapping[str, Any], *, title: str = "Acceptance report"
         "seeds": seeds,
         "coverage": coverage(cases),
         "cases": model_cases,
+        "interrupted": _interrupted(results.get("interrupted")),
     }
+
+
+def _interrupted(block: Any) -> dict[str, Any] | None:
+    """The record's ``interrupted`` block for the report's banner (None: the suite finished)."""
+    if not isinstance(block, Mapping):
+        return None
+    return {"by": str(block.get("by") or "an interrupt"),
+            **{k: [str(x) for x in block.get(k) or []] for k in ("finished", "unfinished", "not_run")}}

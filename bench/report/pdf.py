@@ -17,6 +17,8 @@ from pathlib import Path
 import pypdf
 import weasyprint
 
+from bench.atomic import atomic_file
+
 __all__ = ["render_part", "assemble"]
 
 #: The footer band: A4 with the margins of report.css, the text in the bottom margin.
@@ -53,8 +55,6 @@ def assemble(parts: Sequence[bytes], path: str | Path, *, footer: str = "") -> P
         raise RuntimeError(f"footer pages: {len(stamps.pages)} for {len(writer.pages)} report pages")
     for page, stamp in zip(writer.pages, stamps.pages, strict=True):
         page.merge_page(stamp)
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    with open(p, "wb") as fh:
+    with atomic_file(path) as fh:  # whole or not at all (bench.atomic)
         writer.write(fh)
-    return p
+    return Path(path)

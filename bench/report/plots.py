@@ -11,7 +11,19 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
+from bench.atomic import atomic_file
+
 __all__ = ["allan_plot", "error_curves"]
+
+
+def _save(fig: Any, path: str | Path, *, dpi: int) -> None:
+    """Save ``fig`` whole or not at all (:mod:`bench.atomic`; the format from the suffix), and
+    close it either way."""
+    try:
+        with atomic_file(path, durable=False) as fh:
+            fig.savefig(fh, format=Path(path).suffix.lstrip(".") or "png", dpi=dpi)
+    finally:
+        plt.close(fig)
 
 
 def allan_plot(report: Any, path: str | Path) -> None:
@@ -30,9 +42,7 @@ def allan_plot(report: Any, path: str | Path) -> None:
         ax.legend()
     fig.suptitle(f"Allan deviation: {Path(report.source).name}")
     fig.tight_layout()
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path, dpi=110)
 
 
 def error_curves(
@@ -65,6 +75,4 @@ def error_curves(
         ax.legend(loc="upper right")
     fig.suptitle(title)
     fig.tight_layout()
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    _save(fig, path, dpi=100)

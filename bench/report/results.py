@@ -19,7 +19,13 @@ JSON Schema ``bench/report/schemas/results-1.json`` (published as
                 "runs": [{"recording", "variant", "seed", "verdict",
                           "bench_issues", "dut_issues", "notes", "timing", "criteria",
                           "overview", "identity"}]}],
-     "run_info": {"started_utc", "generated_utc", "elapsed_s", "paths"}}
+     "run_info": {"started_utc", "generated_utc", "elapsed_s", "paths"},
+     "interrupted": {"by", "finished", "unfinished", "not_run"}}   (only when it was)
+
+A suite interrupted (Ctrl-C, SIGTERM) is written with the cases that finished, judged as
+usual, the case in progress ERROR ("did not finish", with the runs that had finished) and
+the cases not run ERROR ("not run"); ``"interrupted"`` names them and the record's verdict
+is ERROR.
 
 A criterion has one entry per variant it judges and one per negative control
 (``"control": true``, the variant it had to FAIL on; its verdict is PASS when it did).
@@ -44,8 +50,10 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from bench.acceptance.interrupted import Interruption
 from bench.acceptance.judge import CaseResult, CriterionResult, RunResult
 from bench.acceptance.verdict import Verdict, worst
+from bench.atomic import write_atomic
 from bench.errors import BenchError
 from bench.report.identity import identification, run_identity
 
@@ -177,24 +185,30 @@ def counts(cases: Sequence[CaseResult]) -> dict[str, int]:
 
 
 def results_json(
-    cases: Sequence[CaseResult], run_info: dict[str, Any] | None = None, *, command: str | None = None
+    cases: Sequence[CaseResult], run_info: dict[str, Any] | None = None, *, command: str | None = None,
+    interrupted: Interruption | None = None,
 ) -> dict[str, Any]:
     """The results record of ``cases``. ``command`` (or ``run_info["command"]``, moved from
-    there) is the command line that reproduces it; ``run_info`` gets ``generated_utc``."""
+    there) is the command line that reproduces it; ``run_info`` gets ``generated_utc``.
+    A suite that was ``interrupted`` is marked so (``"interrupted"``: the signal, the cases
+    that finished, did not finish and were not run) and its verdict is ERROR whatever its
+    cases say: an incomplete suite is never a PASS."""
     info = dict(run_info or {})
     command = command if command is not None else info.pop("command", None)
     info.pop("command", None)
     info.setdefault("generated_utc", _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"))
     case_docs = [case_json(c) for c in cases]
+    verdict = worst(c.verdict for c in cases) if cases and interrupted is None else Verdict.ERROR
     return {
         "schema": SCHEMA,
         "schema_version": SCHEMA_VERSION,
         "schema_id": SCHEMA_ID,
-        "verdict": str(worst(c.verdict for c in cases)) if cases else str(Verdict.ERROR),
+        "verdict": str(verdict),
         "counts": counts(cases),
         "identification": identification(case_docs, None if command is None else str(command)),
         "cases": case_docs,
         "run_info": _clean(info),
+        **({"interrupted": interrupted.to_json()} if interrupted is not None else {}),
     }
 
 
@@ -249,11 +263,9 @@ def validate_results(obj: Any) -> None:
 
 
 def write_json(obj: Any, path: str | Path) -> Path:
-    """Write ``obj`` as strict JSON (a results record is validated first, as written)."""
+    """Write ``obj`` as strict JSON (a results record is validated first, as written),
+    whole or not at all (:mod:`bench.atomic`)."""
     text = json.dumps(obj, indent=1, allow_nan=False) + "\n"
     if isinstance(obj, dict) and obj.get("schema") == SCHEMA:
         validate_results(json.loads(text))
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(text, encoding="utf-8")
-    return p
+    return write_atomic(path, text)

@@ -6,7 +6,8 @@ negative control's row says ``(control)`` and ``must fail``: its PASS is the lim
 it);
 then one row per case with its verdict and what went wrong, and the runs' notes (what
 was recorded without changing a verdict: a damaged source accepted, processes the DUT
-left running).
+left running). A suite that was interrupted says so on the first line (``INCOMPLETE: the
+suite was interrupted by SIGINT; ...``).
 
 The rows and lines are built raw; the text table shows them through
 :func:`~bench.textsafe.for_terminal` and the Markdown one through
@@ -18,6 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from bench.acceptance.interrupted import Interruption
 from bench.acceptance.judge import CaseResult
 from bench.report.results import criterion_json
 from bench.textsafe import for_markdown, for_terminal
@@ -71,8 +73,9 @@ def _clip(s: str, n: int) -> str:
     return s if len(s) <= n else s[: n - 1] + "…"
 
 
-def text_table(cases: Sequence[CaseResult], width: int = 40) -> str:
-    """A fixed-width table (long cells clipped to ``width``)."""
+def text_table(cases: Sequence[CaseResult], width: int = 40, interrupted: Interruption | None = None) -> str:
+    """A fixed-width table (long cells clipped to ``width``); a suite ``interrupted`` says so
+    on the first line."""
     rows = [HEADER, *summary_rows(cases)]
     rows = [tuple(_clip(for_terminal(c), width) for c in r) for r in rows]
     widths = [max(len(r[i]) for r in rows) for i in range(len(HEADER))]
@@ -82,7 +85,8 @@ def text_table(cases: Sequence[CaseResult], width: int = 40) -> str:
         if k == 0:
             lines.append("  ".join("-" * w for w in widths))
     notes = [for_terminal(line) for line in (*case_lines(cases), *reason_lines(cases), *note_lines(cases))]
-    return "\n".join([*lines, "", *notes])
+    head = [for_terminal(interrupted.headline()), ""] if interrupted is not None else []
+    return "\n".join([*head, *lines, "", *notes])
 
 
 def reason_lines(cases: Sequence[CaseResult]) -> list[str]:
@@ -123,10 +127,11 @@ def case_lines(cases: Sequence[CaseResult]) -> list[str]:
     return out
 
 
-def markdown_table(cases: Sequence[CaseResult]) -> str:
-    """The same table in Markdown."""
+def markdown_table(cases: Sequence[CaseResult], interrupted: Interruption | None = None) -> str:
+    """The same table in Markdown (an ``interrupted`` suite says so first, in bold)."""
     rows = summary_rows(cases)
-    out = ["| " + " | ".join(HEADER) + " |", "|" + "---|" * len(HEADER)]
+    out = [f"**{for_markdown(interrupted.headline())}**", ""] if interrupted is not None else []
+    out += ["| " + " | ".join(HEADER) + " |", "|" + "---|" * len(HEADER)]
     for r in rows:
         out.append("| " + " | ".join(for_markdown(c) for c in r) + " |")
     out.append("")

@@ -100,7 +100,7 @@ def test_a_crash_while_scoring_or_plotting_one_run_is_contained(five_cases, tmp_
 def test_a_report_that_cannot_be_written_does_not_stop_the_others(five_cases, tmp_path, monkeypatch, capsys):
     import bench.report.outputs as outputs
 
-    def broken(cases):
+    def broken(cases, *args, **kwargs):
         raise ZeroDivisionError("markdown")
 
     monkeypatch.setattr(outputs, "markdown_table", broken)
