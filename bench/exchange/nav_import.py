@@ -46,6 +46,8 @@ __all__ = ["NavFileError", "NavResult", "read_nav_result", "import_nav", "write_
 #: The topics a DUT's output fills; an import replaces them.
 DUT_TOPICS = (NAV_SOLUTION_TOPIC.topic, NAV_QUALITY_TOPIC.topic, READY_TOPIC.topic, BAD_FRAMES_TOPIC, LOG_TOPIC,
               CAN_RX)
+#: Metadata of the DUT an import replaces (its output, exit, traceback, input tally): not copied.
+_DUT_METADATA = ("dut_output", "dut_exit", "dut_traceback", "dut_input_tally")
 #: What the ICD's NAV_SOLUTION can carry (int32 fields): larger values cannot be a DUT's output
 _WIRE_LIMITS = {"lat": 214.0, "lon": 214.0, "h": 2.1e6, "vel_n": 2.1e5, "vel_e": 2.1e5, "vel_d": 2.1e5}
 _BLOCK = 50  # epochs per batch: a quality meets its solution within the receiver's pairing window
@@ -180,7 +182,7 @@ def write_output(run: str | Path, out: str | Path, result: NavResult | None, *,
         status, reason = end if end is not None else (own.get("status", "error"), own.get("reason", ""))
         with RecordingWriter(out, epoch_ns=src.epoch_ns(), overwrite=overwrite) as rec:
             copy_records(src, rec, keep=lambda t, n, e: t not in DUT_TOPICS and not is_view(t, n, e),
-                         drop_metadata=("run_start", "dut_output"))
+                         drop_metadata=("run_start", *_DUT_METADATA))
             rec.metadata("run_start", {**meta.get("run_start", {}), **(start_extra or {}), **provenance})
             spec = CAN_TOPICS[CAN_RX]
             rec.columnar_topic(spec.topic, spec.schema, spec.dtype, description=spec.description, units=spec.units)
@@ -227,5 +229,18 @@ def import_nav(nav: str | Path, run: str | Path, out: str | Path, *, std: str | 
     clock, duration_ns = run_clock(run)
     result = read_nav_result(nav, clock, std=std, duration_ns=duration_ns)
     files = {"nav": str(Path(nav).resolve()), "std": str(Path(std).resolve()) if std else ""}
-    return write_output(run, out, result, start_extra={"dut_import": json.dumps(files)}, overwrite=overwrite,
-                        accept_damaged_source=accept_damaged_source)
+    # the run's own DUT failing (dut_failed, dut_error) is not the imported DUT's ending: the
+    # copy ends complete, and the run that stopped early is a problem of its source (its
+    # inputs end where that DUT stopped): ERROR unless accepted. A bench ending is kept.
+    end = ("complete", "") if _ending(run) in DUT_ENDINGS else None
+    return write_output(run, out, result, end=end, start_extra={"dut_import": json.dumps(files)},
+                        overwrite=overwrite, accept_damaged_source=accept_damaged_source)
+
+
+#: The endings of a run that belong to its DUT (not kept when another DUT's output is imported).
+DUT_ENDINGS = ("dut_failed", "dut_error")
+
+
+def _ending(run: str | Path) -> str | None:
+    with RecordingReader(run) as src:
+        return (src.metadata().get("run_end") or {}).get("status")

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from bench.record.mcap_io import RecordingReader
 from tests.fault_matrix.matrix import bench, readable
 from tests.record.damage import chunk_flipped, footer_damaged, killed
 
@@ -202,3 +203,62 @@ def test_a_report_of_a_results_record_whose_recording_is_now_damaged_is_error_ne
     # re-judged, it is ERROR too
     bench("report", str(run), "-o", str(tmp_path / "again"), "--no-pdf", "--no-figures", "--rescore", "-q",
           cwd=tmp_path, expect=3)
+
+
+# ------------------------------------------- import-nav onto a run whose own DUT failed
+FAILING = """
+[case]
+id = "DF"
+title = "a run whose in-process DUT fails at 5 s"
+requirements = ["R"]
+shortened = "10 s are enough"
+
+[scenario]
+script = "{short}"
+duration = "10 s"
+
+[sensors]
+imu = {{ grade = "navigation", rate = "200 Hz" }}
+
+[dut]
+kind = "in_process"
+name = "misbehave:Misbehave"
+config = {{ mode = "crash_raise", at_s = 5.0 }}
+
+[run]
+seeds = [1]
+
+[scoring.integrity]
+quality_unmatched = {{ check = false, reason = "a .nav result without its STD file" }}
+
+[[criterion]]
+id = "H"
+requirement = "R"
+metric = "accuracy.horizontal.max"
+at_most = "1 m"
+"""
+
+
+def test_import_nav_onto_a_run_whose_dut_failed_is_not_judged_on_that_dut_s_failure(tmp_path):
+    """The run's own DUT failing is not the imported DUT's ending: the copy ends complete and
+    the run that stopped early is a problem of its source (ERROR unless accepted), never the
+    old DUT's FAIL charged to the new one (on 57b1bce the copy kept the ending)."""
+    from tests.run.robust_util import MISBEHAVE, SHORT
+
+    (tmp_path / "misbehave.py").write_text(MISBEHAVE.read_text())
+    (tmp_path / "case.toml").write_text(FAILING.format(short=SHORT))
+    out = tmp_path / "out"
+    bench("run", str(tmp_path / "case.toml"), "-o", str(out), "-q", "--no-plots", cwd=tmp_path, expect=1)
+    rec = out / "recordings" / "DF" / "DF-s1.mcap"
+    exp = tmp_path / "exp"
+    bench("export", str(rec), "-o", str(exp), FLAG, cwd=tmp_path, expect=0)  # its truth, as a perfect result
+    copy = tmp_path / "copy.mcap"
+    bench("import-nav", str(exp / "truth.nav"), "--run", str(rec), "-o", str(copy), cwd=tmp_path, expect=3)
+    with RecordingReader(copy) as r:
+        assert r.metadata()["run_end"]["status"] == "complete"
+    _marked(copy, "run ended with status 'dut_failed'", accepted=False)
+    _untrusted(copy, "run ended with status 'dut_failed'")
+    accepted = tmp_path / "accepted.mcap"
+    bench("import-nav", str(exp / "truth.nav"), "--run", str(rec), "-o", str(accepted), FLAG, cwd=tmp_path,
+          expect=0)
+    _accepted(accepted)
