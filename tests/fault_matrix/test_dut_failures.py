@@ -130,6 +130,11 @@ def test_an_in_process_estimator_that_crashes_exits_hangs_or_floods_fails(tmp_pa
     config = _toml(_config(tmp_path, mode, extra))
     _write(tmp_path, f'kind = "in_process"\nname = "misbehave:Misbehave"\nconfig = {config}', timeout=timeout)
     _failed(tmp_path, tmp_path / "out", reason)
+    if how == "crash":  # and the certification report a reviewer signs says it too
+        bench("report", str(tmp_path / "out"), "-o", str(tmp_path / "report"), "--no-pdf", "-q", cwd=tmp_path,
+              expect=1)
+        html = (tmp_path / "report" / "report.html").read_text()
+        assert "DUT: " in html and "filter diverged at 1.00 s" in html and 'data-verdict="FAIL"' in html
 
 
 def test_the_in_process_estimator_behaving_passes(tmp_path):
