@@ -10,7 +10,6 @@ stopped, and ``aggregate`` is the same whichever executor ran it.
 from __future__ import annotations
 
 import datetime as _dt
-import json
 import os
 import shutil
 import time
@@ -25,7 +24,7 @@ from bench.campaign.executors import completed, open_executor, pool_broken, work
 from bench.campaign.guard import death_record, guarded_run, marker_path, read_marker
 from bench.campaign.plan import PlannedRun, plan_campaign
 from bench.campaign.verdicts import judge_groups
-from bench.campaign.work import load_record, read_json, record_path, write_atomic
+from bench.campaign.work import check_json, load_record, read_json, record_path, record_problem, write_atomic
 from bench.crashlog import one_line
 
 __all__ = ["CampaignOptions", "CampaignProgress", "run_campaign", "read_campaign"]
@@ -164,8 +163,11 @@ def run_campaign(
         stale = []
     records: dict[str, dict[str, Any]] = {}
     todo: list[PlannedRun] = []
+    malformed: list[str] = []  # records on disk that cannot be used: their runs run again
     for run in plan:
         rec = load_record(out, run.key)
+        if rec is None and (why := record_problem(out, run.key)) is not None:
+            malformed.append(why)
         if rec is None or (options.retry_errors and rec.get("verdict") == "ERROR"):
             todo.append(run)
         else:
@@ -196,6 +198,7 @@ def run_campaign(
             "aggregate": aggregate(records.values()),
             "verdicts": verdicts,
             "invocation": {"executed": state.executed, "reused": len(plan) - len(todo), "lost": state.lost,
+                           "malformed": malformed,
                            "workers": options.workers, "scheduler": options.scheduler or "processes"},
         }
         write_atomic(out / "campaign.json", result)
@@ -205,6 +208,7 @@ def run_campaign(
 
 
 def read_campaign(out_dir: str | Path) -> dict[str, Any]:
-    """The ``campaign.json`` of a campaign folder."""
-    return json.loads((Path(out_dir) / "campaign.json").read_text(encoding="utf-8"))
+    """The ``campaign.json`` of a campaign folder (:func:`~bench.campaign.work.check_json`:
+    a malformed one is a :class:`~bench.errors.ConfigError` naming the file and the field)."""
+    return check_json(Path(out_dir) / "campaign.json")
 

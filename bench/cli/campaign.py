@@ -19,8 +19,10 @@ Each case (at each sweep point) is judged over all its runs as ``bench accept`` 
 Exit codes of ``bench campaign``: 0 every case PASS or MARGINAL; 1 a case FAILed; 2 a
 malformed case or bad usage; 3 a case was ERROR: a run ERROR, or not run (the campaign is
 then incomplete). A report that cannot be written is said on stderr and changes none of
-them. Of ``bench campaign-report``: 0 written; 2 no readable ``DIR/campaign.json``; 3 the
-report could not be written.
+them. Of ``bench campaign-report``: 0 written; 2 no readable ``DIR/campaign.json``, or it or
+a run record it names is malformed (a number that is not finite, not JSON, larger than 256
+MiB, nested deeper than 64 levels: the file and the field named); 3 the report could not be
+written. ``bench campaign`` runs again a run whose record is malformed, and says so.
 """
 
 from __future__ import annotations
@@ -107,6 +109,9 @@ def _run(args: argparse.Namespace) -> int:
     inv = result["invocation"]
     print(f"{agg['runs']}/{result['campaign']['planned']} run(s) recorded ({inv['executed']} run now, "
           f"{inv['reused']} reused); {Path(args.out) / 'campaign.json'}")
+    for note in inv.get("malformed", []):
+        print(for_terminal(f"bench campaign: a run record cannot be used, its run runs again: {note}"),
+              file=sys.stderr)
     for note in inv["lost"]:
         print(for_terminal(f"bench campaign: not run: {note}"), file=sys.stderr)
     if stale := result["campaign"]["stale"]:
@@ -141,7 +146,8 @@ def _write_report(campaign: dict, out: Path, *, pdf: bool, workers: int) -> bool
 
 def reaggregated(campaign: dict, out: Path) -> dict:
     """``campaign`` with its aggregate computed again from the records on disk of the runs it
-    names (recorded or missing), its ``missing`` and ``complete`` updated."""
+    names (recorded or missing), its ``missing`` and ``complete`` updated. A malformed record
+    (a number that is not finite...) is a ConfigError naming it: never judged as if fine."""
     from bench.campaign.aggregate import aggregate
     from bench.campaign.work import load_record
 
@@ -149,7 +155,7 @@ def reaggregated(campaign: dict, out: Path) -> dict:
     keys = list((campaign.get("aggregate") or {}).get("keys") or []) + list(camp.get("missing") or [])
     records, missing = [], []
     for key in dict.fromkeys(keys):
-        rec = load_record(out, key)
+        rec = load_record(out, key, strict=True)
         if rec is None:
             missing.append(key)
         else:
@@ -179,16 +185,17 @@ def _rejudged(campaign: dict, camp: dict, records: dict, keys: set[str]) -> dict
 
 
 def _report_only(args: argparse.Namespace) -> int:
-    import json
+    from bench.campaign.campaign import read_campaign
+    from bench.errors import ConfigError
 
     out = Path(args.out)
-    try:
-        campaign = json.loads((out / "campaign.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        print(for_terminal(f"bench campaign-report: cannot read {out / 'campaign.json'}: {exc}"), file=sys.stderr)
-        return EXIT_USAGE
     if args.workers < 1:
         print("bench campaign-report: --workers must be at least 1", file=sys.stderr)
         return EXIT_USAGE
-    ok = _write_report(reaggregated(campaign, out), out, pdf=not args.no_pdf, workers=args.workers)
+    try:  # campaign.json and the run records it names, each read bounded and checked
+        again = reaggregated(read_campaign(out), out)
+    except ConfigError as exc:
+        print(for_terminal(f"bench campaign-report: {exc}"), file=sys.stderr)
+        return EXIT_USAGE
+    ok = _write_report(again, out, pdf=not args.no_pdf, workers=args.workers)
     return EXIT_OK if ok else EXIT_ERROR

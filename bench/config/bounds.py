@@ -119,6 +119,15 @@ BOUNDS: dict[str, Bound] = {
                        where="TOML and CSV inputs: cases, scenarios, parameter sets, fault, mapping, vehicle, "
                        "track files"),
     "log_file": Bound("a log file size", 0, 1024 * _MiB, "MiB", scale=_MiB, where="field logs given to `bench replay`"),
+    "json_file": Bound("a JSON file size", 0, 256 * _MiB, "MiB", scale=_MiB,
+                       where="results records (`bench compare`, `bench report`), `campaign.json` and run records, "
+                       "DUT configuration and road network files"),
+    "nesting": Bound("a nesting depth", 1, 64, note="arrays and tables inside each other",
+                     where="every TOML and JSON input"),
+    "nav_file": Bound("a .nav or STD file size", 0, 256 * _MiB, "MiB", scale=_MiB, where="`bench import-nav`"),
+    "nav_lines": Bound("a number of lines", 1, 1_000_000, note="and 10 kHz x (the run's duration + 1 s)",
+                       where="a .nav or STD file given to `bench import-nav`"),
+    "line_length": Bound("a line length", 1, 4096, "bytes", where="a line of a .nav or STD file"),
 }
 
 

@@ -21,7 +21,7 @@ def _err(fn, *args, **kw) -> ConfigError:
 
 def test_a_directory_is_refused(tmp_path):
     e = _err(read_toml, tmp_path, what="test case file")
-    assert e.file == str(tmp_path) and e.reason == "is a directory, not a test case file"
+    assert e.file == str(tmp_path) and e.reason == "is a directory, not a test case file (a regular file of at most 64 MiB)"
 
 
 def test_a_fifo_is_refused_without_blocking(tmp_path):
@@ -33,7 +33,7 @@ def test_a_fifo_is_refused_without_blocking(tmp_path):
 
 def test_a_character_device_is_refused():
     e = _err(read_toml, "/dev/zero", what="scenario file")
-    assert e.file == "/dev/zero" and e.reason == "is a character device, not a scenario file"
+    assert e.file == "/dev/zero" and e.reason == "is a character device, not a scenario file (a regular file of at most 64 MiB)"
     e = _err(read_bytes, "/dev/null")
     assert "character device" in e.reason
 
