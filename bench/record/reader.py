@@ -106,8 +106,9 @@ class RecordingReader:
         return out
 
     def read_columnar(self, topic: str) -> np.ndarray:
-        """All readable records of a columnar topic, concatenated in write order."""
-        parts: list[np.ndarray] = []
+        """All readable records of a columnar topic, concatenated in write order (into one
+        growing buffer, block by block: never the blocks and their concatenation at once)."""
+        buf = bytearray()
         dtype: np.dtype | None = None
         for schema, ch, _, data in self._iter([topic]):
             if ch.message_encoding != COLUMNAR:
@@ -119,10 +120,10 @@ class RecordingReader:
                     raise RecordingError(f"{self.path}: topic {topic}: its schema does not parse: {exc}") from None
             if len(data) % dtype.itemsize:
                 raise RecordingError(f"{self.path}: topic {topic}: a block of {len(data)} B is not whole records")
-            parts.append(np.frombuffer(data, dtype=dtype))
+            buf += data
         if dtype is None:
             raise RecordingError(f"{self.path}: no messages on topic {topic}")
-        return np.concatenate(parts)
+        return np.frombuffer(buf, dtype=dtype)  # writable, as a concatenation is
 
     def read_chunks(self, topic: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """All chunks of a chunk topic: ``(t_ns, offsets, buf)`` in write order."""
