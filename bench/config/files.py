@@ -11,7 +11,7 @@ read, with a :class:`~bench.errors.ConfigError` naming the file, what it is and 
     big.toml: is 3.2 GiB, more than the 64 MiB limit of a text file
 
 Limits (:data:`bench.config.bounds.BOUNDS`): 64 MiB for text files (TOML, CSV), 256 MiB
-for JSON files (results records, campaign files, DUT configurations, road networks), 1 GiB
+for JSON files (results records, campaign files, a JSON DUT configuration), 1 GiB
 for binary field logs. At most the limit + 1 bytes are ever read, whatever the file
 claims to be (a file that grows while it is read is refused).
 
