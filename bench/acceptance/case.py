@@ -12,7 +12,6 @@ reference users read.
 from __future__ import annotations
 
 import copy
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -243,9 +242,6 @@ def parse_case(
     from bench.acceptance.schema import build_case
     from bench.acceptance.sweep_point import apply_sweep_point
 
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"not valid TOML: {exc}", file=file) from None
+    doc = files.parse_toml(text, file=file, what="test case file")  # nested <= 64 levels, every number finite
     doc = apply_sweep_point(doc, file=file)  # a swept case's values (bench campaign)
     return build_case(doc, text=text, file=file, base=base, check_files=check_files, path=path)

@@ -11,7 +11,6 @@ holds ``<dir>`` (``<dir>/campaign.lock``, :mod:`bench.campaign.lock`).
 from __future__ import annotations
 
 import datetime as _dt
-import json
 import os
 import shutil
 import sys
@@ -28,7 +27,15 @@ from bench.campaign.guard import death_record, guarded_run, marker_path, read_ma
 from bench.campaign.lock import CampaignLock, acquire
 from bench.campaign.plan import PlannedRun, plan_campaign
 from bench.campaign.verdicts import judge_groups
-from bench.campaign.work import RunBusyError, load_record, read_json, record_path, write_atomic
+from bench.campaign.work import (
+    RunBusyError,
+    check_json,
+    load_record,
+    read_json,
+    record_path,
+    record_problem,
+    write_atomic,
+)
 from bench.crashlog import one_line
 from bench.record.lock import holder
 
@@ -222,8 +229,11 @@ def _run_held(options: CampaignOptions, out: Path, held: CampaignLock,
         stale = []
     records: dict[str, dict[str, Any]] = {}
     todo: list[PlannedRun] = []
+    malformed: list[str] = []  # records on disk that cannot be used: their runs run again
     for run in plan:
         rec = load_record(out, run.key)
+        if rec is None and (why := record_problem(out, run.key)) is not None:
+            malformed.append(why)
         if rec is None or (options.retry_errors and rec.get("verdict") == "ERROR"):
             todo.append(run)
         else:
@@ -255,6 +265,7 @@ def _run_held(options: CampaignOptions, out: Path, held: CampaignLock,
             "aggregate": aggregate(records.values()),
             "verdicts": verdicts,
             "invocation": {"executed": state.executed, "reused": state.reused, "lost": state.lost,
+                           "malformed": malformed,
                            "workers": options.workers, "scheduler": options.scheduler or "processes",
                            "lock": lock, "took_over": held.took_over},
         }
@@ -265,6 +276,7 @@ def _run_held(options: CampaignOptions, out: Path, held: CampaignLock,
 
 
 def read_campaign(out_dir: str | Path) -> dict[str, Any]:
-    """The ``campaign.json`` of a campaign folder."""
-    return json.loads((Path(out_dir) / "campaign.json").read_text(encoding="utf-8"))
+    """The ``campaign.json`` of a campaign folder (:func:`~bench.campaign.work.check_json`:
+    a malformed one is a :class:`~bench.errors.ConfigError` naming the file and the field)."""
+    return check_json(Path(out_dir) / "campaign.json")
 

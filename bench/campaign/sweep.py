@@ -19,12 +19,12 @@ from __future__ import annotations
 
 import itertools
 import json
-import tomllib
 from pathlib import Path
 from typing import Any
 
 from bench.acceptance.case import TestCase, load_case, parse_case
 from bench.acceptance.sweep_point import TABLE, check_key, sweep_point_toml
+from bench.config.files import read_text, read_toml
 from bench.errors import ConfigError
 
 __all__ = ["SweepPoint", "sweep_points", "case_at", "point_label"]
@@ -34,10 +34,7 @@ SweepPoint = tuple[tuple[str, Any], ...]
 
 
 def _doc(path: Path) -> dict[str, Any]:
-    try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"not valid TOML: {exc}", file=str(path)) from None
+    return read_toml(path, what="test case file")  # bounded, nested <= 64 levels, every number finite
 
 
 def sweep_points(path: str | Path) -> list[SweepPoint]:
@@ -72,7 +69,7 @@ def case_at(path: str | Path, point: SweepPoint) -> TestCase:
     p = Path(path)
     if not point:
         return load_case(p)
-    text = p.read_text(encoding="utf-8")
+    text = read_text(p, what="test case file")
     if TABLE in _doc(p):
         raise ConfigError(f"a case with [[sweep]] cannot also set [{TABLE}]", file=str(p), key=TABLE)
     return parse_case(text.rstrip("\n") + "\n" + sweep_point_toml(point, point_label(point)), file=str(p),

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from pathlib import Path
 from typing import Any
 
@@ -27,8 +28,10 @@ from bench import atomic
 from bench.campaign.plan import PlannedRun
 from bench.errors import BenchError
 
-__all__ = ["execute_run", "record_path", "load_record", "write_atomic", "RunInterruptedError", "RunBusyError",
-           "RECORD_VERSION"]
+__all__ = [
+    "execute_run", "record_path", "load_record", "record_problem", "check_json", "write_atomic", "RunInterruptedError",
+    "RunBusyError", "RECORD_VERSION",
+]
 
 RECORD_VERSION = 2
 
@@ -56,18 +59,53 @@ def record_path(out_dir: str | Path, key: str) -> Path:
     return Path(out_dir) / "runs" / f"{key}.json"
 
 
+def check_json(path: Path) -> dict[str, Any]:
+    """The JSON object of a campaign's file (a run record, a marker, ``campaign.json``), read
+    bounded and checked by :func:`bench.config.files.read_json`: a number that is not finite
+    is refused (:class:`~bench.errors.ConfigError` naming the file and the field), except
+    ``Infinity``, which the campaign writes for an infinite measurement (NaN it writes as
+    null, :func:`write_atomic`)."""
+    from bench.config.files import read_json as read_checked
+    from bench.errors import ConfigError
+
+    data = read_checked(path, what="campaign file", infinity=True)
+    if not isinstance(data, dict):
+        raise ConfigError(f"expected a JSON object, found {type(data).__name__}", file=str(path))
+    return data
+
+
 def read_json(path: Path) -> dict[str, Any] | None:
-    """A JSON object from ``path``; None when missing, unreadable or not an object."""
+    """A JSON object from ``path`` (:func:`check_json`); None when missing or malformed."""
+    from bench.errors import ConfigError
+
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        return check_json(path)
+    except ConfigError:
         return None
-    return data if isinstance(data, dict) else None
 
 
-def load_record(out_dir: str | Path, key: str) -> dict[str, Any] | None:
-    """The complete record of run ``key``, or None (missing, unreadable or incomplete)."""
-    rec = read_json(record_path(out_dir, key))
+def record_problem(out_dir: str | Path, key: str) -> str | None:
+    """Why the record of run ``key`` on disk is malformed (a number that is not finite, not
+    JSON, too large or nested too deep...: the message names the file and the field), or
+    None when it is absent or readable."""
+    from bench.errors import ConfigError
+
+    path = record_path(out_dir, key)
+    if not os.path.lexists(path):
+        return None
+    try:
+        check_json(path)
+    except ConfigError as exc:
+        return str(exc)
+    return None
+
+
+def load_record(out_dir: str | Path, key: str, *, strict: bool = False) -> dict[str, Any] | None:
+    """The complete record of run ``key``, or None (missing, malformed, incomplete or of
+    another version). ``strict``: a malformed record is a :class:`~bench.errors.ConfigError`
+    naming the file and the field instead."""
+    path = record_path(out_dir, key)
+    rec = check_json(path) if strict and os.path.lexists(path) else read_json(path)
     if (rec is None or rec.get("key") != key or rec.get("complete") is not True
             or rec.get("version") != RECORD_VERSION):
         return None  # a record of another version lacks what the aggregate reads: the run runs again
@@ -116,9 +154,22 @@ def sweep_axes(case_file: str, point: Any) -> list[list[Any]] | None:
     return axes
 
 
+def _no_nan(x: Any) -> Any:
+    """``x`` with every NaN float (in nested dicts and lists) made None: a campaign's files
+    hold no NaN, so a NaN read back is a damaged file (:func:`check_json`)."""
+    if isinstance(x, float):
+        return None if math.isnan(x) else x
+    if isinstance(x, dict):
+        return {k: _no_nan(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_no_nan(v) for v in x]
+    return x
+
+
 def write_atomic(path: Path, data: dict[str, Any]) -> None:
-    """Write ``data`` as JSON to ``path`` whole or not at all (:mod:`bench.atomic`)."""
-    atomic.write_atomic(path, json.dumps(data, indent=1, sort_keys=True, allow_nan=True))
+    """Write ``data`` as JSON to ``path`` whole or not at all (:mod:`bench.atomic`); NaN is
+    written as null, an infinity as ``Infinity``."""
+    atomic.write_atomic(path, json.dumps(_no_nan(data), indent=1, sort_keys=True, allow_nan=True))
 
 
 def execute_run(run: PlannedRun, out_dir: str) -> dict[str, Any]:

@@ -26,7 +26,10 @@ Exit codes of ``bench campaign``: 0 every case PASS or MARGINAL; 1 a case FAILed
 malformed case, bad usage, or DIR held by another campaign; 3 a case was ERROR: a run
 ERROR, or not run (the campaign is then incomplete). A report that cannot be written is
 said on stderr and changes none of them. Of ``bench campaign-report``: 0 written; 2 no
-readable ``DIR/campaign.json``; 3 the report could not be written.
+readable ``DIR/campaign.json``, or it or a run record it names is malformed (a number that
+is not finite, not JSON, larger than 256 MiB, nested deeper than 64 levels: the file and
+the field named); 3 the report could not be written. ``bench campaign`` runs again a run
+whose record is malformed, and says so.
 """
 
 from __future__ import annotations
@@ -123,6 +126,9 @@ def _run(args: argparse.Namespace) -> int:
     inv = result["invocation"]
     print(f"{agg['runs']}/{result['campaign']['planned']} run(s) recorded ({inv['executed']} run now, "
           f"{inv['reused']} reused); {Path(args.out) / 'campaign.json'}")
+    for note in inv.get("malformed", []):
+        print(for_terminal(f"bench campaign: a run record cannot be used, its run runs again: {note}"),
+              file=sys.stderr)
     for note in inv["lost"]:
         print(for_terminal(f"bench campaign: not run: {note}"), file=sys.stderr)
     if stale := result["campaign"]["stale"]:
@@ -157,7 +163,8 @@ def _write_report(campaign: dict, out: Path, *, pdf: bool, workers: int) -> bool
 
 def reaggregated(campaign: dict, out: Path) -> dict:
     """``campaign`` with its aggregate computed again from the records on disk of the runs it
-    names (recorded or missing), its ``missing`` and ``complete`` updated."""
+    names (recorded or missing), its ``missing`` and ``complete`` updated. A malformed record
+    (a number that is not finite...) is a ConfigError naming it: never judged as if fine."""
     from bench.campaign.aggregate import aggregate
     from bench.campaign.work import load_record
 
@@ -165,7 +172,7 @@ def reaggregated(campaign: dict, out: Path) -> dict:
     keys = list((campaign.get("aggregate") or {}).get("keys") or []) + list(camp.get("missing") or [])
     records, missing = [], []
     for key in dict.fromkeys(keys):
-        rec = load_record(out, key)
+        rec = load_record(out, key, strict=True)
         if rec is None:
             missing.append(key)
         else:
@@ -215,21 +222,20 @@ def _running(out: Path) -> dict | None:
 
 
 def _report_only(args: argparse.Namespace) -> int:
-    import json
+    from bench.campaign.campaign import read_campaign
+    from bench.errors import ConfigError
 
     out = Path(args.out)
-    running = _running(out)
-    try:
-        campaign = json.loads((out / "campaign.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        later = "; the campaign running there writes it when it ends" if running is not None else ""
-        print(for_terminal(f"bench campaign-report: cannot read {out / 'campaign.json'}: {exc}{later}"),
-              file=sys.stderr)
-        return EXIT_USAGE
     if args.workers < 1:
         print("bench campaign-report: --workers must be at least 1", file=sys.stderr)
         return EXIT_USAGE
-    campaign = reaggregated(campaign, out)
+    running = _running(out)
+    try:  # campaign.json and the run records it names, each read bounded and checked
+        campaign = reaggregated(read_campaign(out), out)
+    except ConfigError as exc:
+        later = "; the campaign running there writes it when it ends" if running is not None else ""
+        print(for_terminal(f"bench campaign-report: {exc}{later}"), file=sys.stderr)
+        return EXIT_USAGE
     if running is not None:
         campaign = {**campaign, "running": running}
     ok = _write_report(campaign, out, pdf=not args.no_pdf, workers=args.workers)

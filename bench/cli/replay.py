@@ -68,20 +68,13 @@ def _field_log_options(p: argparse.ArgumentParser) -> None:
 
 
 def _dut_config(path: str | None) -> dict:
-    import json
-    import tomllib
-
-    from bench.config.files import read_text
+    from bench.config.files import read_json, read_toml
     from bench.errors import ConfigError
 
     if path is None:
         return {}
-    text = read_text(path, what="DUT configuration file")  # a regular file of bounded size, or ConfigError
-    try:
-        doc = json.loads(text) if path.endswith(".json") else tomllib.loads(text)
-    except ValueError as exc:  # tomllib's and json's errors are ValueErrors
-        raise ConfigError(f"expected a {'JSON' if path.endswith('.json') else 'TOML'} table: {exc}", file=path,
-                          key="--dut-config") from None
+    what = "DUT configuration file"  # bounded, nested <= 64 levels, every number finite; or ConfigError
+    doc = read_json(path, what=what) if path.endswith(".json") else read_toml(path, what=what)
     if not isinstance(doc, dict):
         raise ConfigError(f"expected a table, found {type(doc).__name__}", file=path, key="--dut-config")
     return doc

@@ -19,7 +19,6 @@ written. The report is written whatever the verdict.
 from __future__ import annotations
 
 import argparse
-import json
 import shlex
 import sys
 from pathlib import Path
@@ -51,16 +50,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def load_results(path: Path) -> dict[str, Any]:
-    """A results record from ``path`` (a file, or a folder holding ``results.json``)."""
+    """A results record from ``path`` (a file, or a folder holding ``results.json``): read
+    bounded and checked (:func:`bench.config.files.read_json`: every number finite, an
+    infinite measurement the string ``"inf"``), then against its schema."""
+    from bench.config.files import read_json
     from bench.errors import ConfigError
 
     file = path / "results.json" if path.is_dir() else path
-    try:
-        obj = json.loads(file.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError(f"{file}: no such results record") from None
-    except (UnicodeDecodeError, ValueError) as exc:
-        raise ConfigError(f"{file}: not a results record (JSON does not parse: {exc})") from None
+    obj = read_json(file, what="results record")
     if not isinstance(obj, dict) or not isinstance(obj.get("cases"), list):
         raise ConfigError(f"{file}: not a results record (no 'cases' list)")
     if "schema_version" in obj:  # a record of the published schema (older ones predate it)

@@ -117,8 +117,17 @@ BOUNDS: dict[str, Bound] = {
     "speed_factor": Bound("a speed factor", 0.0, 1000.0, low_open=True, where="`[clock] speed`"),
     "text_file": Bound("a text file size", 0, 64 * _MiB, "MiB", scale=_MiB,
                        where="TOML and CSV inputs: cases, scenarios, parameter sets, fault, mapping, vehicle, "
-                       "track files"),
+                       "track files; road networks (GeoJSON)"),
     "log_file": Bound("a log file size", 0, 1024 * _MiB, "MiB", scale=_MiB, where="field logs given to `bench replay`"),
+    "json_file": Bound("a JSON file size", 0, 256 * _MiB, "MiB", scale=_MiB,
+                       where="results records (`bench compare`, `bench report`), `campaign.json` and run records, "
+                       "a JSON DUT configuration file (`bench replay --dut-config`)"),
+    "nesting": Bound("a nesting depth", 1, 64, note="arrays and tables inside each other",
+                     where="every TOML and JSON input"),
+    "nav_file": Bound("a .nav or STD file size", 0, 256 * _MiB, "MiB", scale=_MiB, where="`bench import-nav`"),
+    "nav_lines": Bound("a number of lines", 1, 1_000_000, note="and 10 kHz x (the run's duration + 1 s)",
+                       where="a .nav or STD file given to `bench import-nav`"),
+    "line_length": Bound("a line length", 1, 4096, "bytes", where="a line of a .nav or STD file"),
 }
 
 

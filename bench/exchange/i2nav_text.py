@@ -20,11 +20,14 @@ STD        sow, sigma pos N E D (m), vel N E D (m/s), att roll pitch yaw (deg) [
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+import os
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
 
+from bench.config.bounds import bound
+from bench.config.files import open_bounded, read_blocks
 from bench.errors import ConfigError
 
 __all__ = [
@@ -34,6 +37,9 @@ __all__ = [
     "nav_rows",
     "std_rows",
     "read_table",
+    "iter_table",
+    "count_lines",
+    "max_lines",
     "NAV_COLUMNS",
     "STD_COLUMNS",
 ]
@@ -85,46 +91,140 @@ def std_rows(sigma_pos_enu: np.ndarray, sigma_vel_enu: np.ndarray, sigma_att_hpr
     return cols, [".4f"] * 3 + [".5f"] * 3 + [".8f"] * 3
 
 
-def read_table(path: str | Path, names: Sequence[str], *, what: str, max_bytes: int = 1 << 30
-               ) -> tuple[np.ndarray, np.ndarray]:
-    """Read a whitespace-separated numeric text file whose first ``len(names)`` columns
-    are ``names`` (more columns are ignored; ``#`` and ``%`` start comments, blank lines
-    are skipped). Returns an (N, len(names)) float array and the (N,) line numbers (from 1)
-    the rows come from, for messages about them.
+#: Largest .nav or STD file, bytes; longest line; most lines (and see :func:`max_lines`).
+NAV_FILE_LIMIT = int(bound("nav_file").high or 0)
+LINE_LIMIT = int(bound("line_length").high or 0)
+MAX_LINES = int(bound("nav_lines").high or 0)
+#: The highest output rate the bench takes of a DUT (the bound of ``[dut] output_rate``), Hz.
+MAX_RATE_HZ = float(bound("rate").high or 0)
+#: Data rows per block of :func:`iter_table` (a multiple of the importer's 50-epoch batches).
+BLOCK_ROWS = 164 * 50
 
-    Raises :class:`ConfigError` naming the file, the line and the field for a line with
-    too few columns, a value that is not a number or not finite, or a file with no line.
-    """
-    p = Path(path)
-    if not p.is_file():
-        raise ConfigError(f"expected a regular file ({what}), found {'a directory' if p.is_dir() else 'nothing'}",
-                          file=str(p))
-    if p.stat().st_size > max_bytes:
-        raise ConfigError(f"{what} of {p.stat().st_size} B is larger than {max_bytes} B", file=str(p))
-    rows: list[list[float]] = []
+
+def max_lines(duration_ns: int | None) -> tuple[int, str]:
+    """The most lines a .nav or STD file of a run of ``duration_ns`` may have, and why: at
+    most :data:`MAX_RATE_HZ` over the run and the 1 s after it, and never more than
+    :data:`MAX_LINES` (what the bench imports and scores in under 1 GB)."""
+    if duration_ns is not None and duration_ns >= 0:
+        seconds = duration_ns * 1e-9 + 1.0
+        by_rate = math.ceil(seconds * MAX_RATE_HZ - 1e-6)
+        if by_rate < MAX_LINES:
+            return by_rate, (f"of a {duration_ns * 1e-9:g} s run may have ({MAX_RATE_HZ / 1e3:g} kHz, the highest "
+                             "output rate the bench takes, over the run and 1 s after it)")
+    return MAX_LINES, "may have (what the bench imports and scores in under 1 GB)"
+
+
+def count_lines(path: str | Path, *, what: str, limit: int, why: str = "may have") -> int:
+    """The number of lines of a regular file of at most :data:`NAV_FILE_LIMIT` bytes (a last
+    line without a newline counted), or :class:`ConfigError` when there are more than
+    ``limit`` (``why`` says where the limit comes from). Reads the file at C speed only."""
+    fd, file = open_bounded(path, what=what, limit=NAV_FILE_LIMIT)
+    n, last = 0, b"\n"
+    try:
+        for chunk in read_blocks(fd, file, what=what, limit=NAV_FILE_LIMIT, size=1 << 20):
+            n += chunk.count(b"\n")
+            last = chunk[-1:]
+            if n > limit:
+                break
+    finally:
+        os.close(fd)
+    n += last != b"\n"
+    if n > limit:
+        raise ConfigError(f"more than the {limit:,} lines {_a(what)} {why}", file=file)
+    return n
+
+
+def _lines(path: str | Path, what: str) -> Iterator[tuple[int, list[bytes]]]:
+    """(number of the first line, lines) of the file, in blocks, each line at most
+    :data:`LINE_LIMIT` bytes (else ConfigError naming the line)."""
+    fd, file = open_bounded(path, what=what, limit=NAV_FILE_LIMIT)
+    tail = b""
+    lineno = 1
+    try:
+        for chunk in read_blocks(fd, file, what=what, limit=NAV_FILE_LIMIT, size=1 << 20):
+            lines = (tail + chunk).split(b"\n")
+            tail = lines.pop()
+            if lines and max(map(len, lines)) > LINE_LIMIT:
+                k = next(i for i, ln in enumerate(lines) if len(ln) > LINE_LIMIT)
+                raise ConfigError(f"line {lineno + k}: longer than the {LINE_LIMIT} bytes a line may have", file=file)
+            if len(tail) > LINE_LIMIT:
+                raise ConfigError(f"line {lineno + len(lines)}: longer than the {LINE_LIMIT} bytes a line may have",
+                                  file=file)
+            for i in range(0, len(lines), BLOCK_ROWS):
+                yield lineno + i, lines[i : i + BLOCK_ROWS]
+            lineno += len(lines)
+    finally:
+        os.close(fd)
+    if tail:
+        yield lineno, [tail]
+
+
+def _a(what: str) -> str:
+    return f"{'an' if what[:1] in 'aeiou' or what.startswith('STD') else 'a'} {what}"
+
+
+def _token(t: bytes) -> str:
+    return repr(t[:40].decode("utf-8", "replace"))
+
+
+def _parse(block: list[tuple[int, list[bytes]]], names: Sequence[str], file: str) -> tuple[np.ndarray, np.ndarray]:
+    """The rows (n, k) and line numbers (n,) of the data lines ``block`` holds."""
+    k = len(names)
+    tokens: list[bytes] = []
     numbers: list[int] = []
-    with open(p, encoding="utf-8", errors="replace") as fh:
-        for lineno, line in enumerate(fh, start=1):
-            text = line.split("#", 1)[0].split("%", 1)[0].replace(",", " ").strip()
-            if not text:
-                continue
-            parts = text.split()
-            if len(parts) < len(names):
-                raise ConfigError(f"line {lineno}: expected {len(names)} columns ({', '.join(names)}), "
-                                  f"found {len(parts)}", file=str(p))
-            row: list[float] = []
-            for k, name in enumerate(names):
-                try:
-                    v = float(parts[k])
-                except ValueError:
-                    raise ConfigError(f"line {lineno}, column {k + 1} ({name}): expected a number, "
-                                      f"found {parts[k][:40]!r}", file=str(p)) from None
-                if not math.isfinite(v):
-                    raise ConfigError(f"line {lineno}, column {k + 1} ({name}): expected a finite number, "
-                                      f"found {parts[k][:40]!r}", file=str(p))
-                row.append(v)
-            rows.append(row)
-            numbers.append(lineno)
-    if not rows:
-        raise ConfigError(f"no data line in the {what}", file=str(p))
-    return np.asarray(rows, dtype=float), np.asarray(numbers, dtype=np.int64)
+    for lineno, line in block:
+        if b"#" in line:
+            line = line.split(b"#", 1)[0]
+        if b"%" in line:
+            line = line.split(b"%", 1)[0]
+        parts = line.replace(b",", b" ").split()
+        if not parts:
+            continue
+        if len(parts) < k:
+            raise ConfigError(f"line {lineno}: expected {k} columns ({', '.join(names)}), found {len(parts)}",
+                              file=file)
+        tokens += parts[:k]
+        numbers.append(lineno)
+    try:
+        rows = np.array(tokens, dtype=np.float64).reshape(-1, k)
+    except ValueError:  # find the first one, as Python reads numbers
+        rows = np.empty((len(numbers), k))
+        for j, t in enumerate(tokens):
+            try:
+                rows.flat[j] = float(t)
+            except ValueError:
+                raise ConfigError(f"line {numbers[j // k]}, column {j % k + 1} ({names[j % k]}): expected a number, "
+                                  f"found {_token(t)}", file=file) from None
+    bad = ~np.isfinite(rows)
+    if bad.any():
+        j = int(np.flatnonzero(bad.ravel())[0])
+        raise ConfigError(f"line {numbers[j // k]}, column {j % k + 1} ({names[j % k]}): expected a finite number, "
+                          f"found {_token(tokens[j])}", file=file)
+    return rows, np.asarray(numbers, dtype=np.int64)
+
+
+def iter_table(path: str | Path, names: Sequence[str], *, what: str) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """Blocks of a whitespace-separated numeric text file whose first ``len(names)`` columns
+    are ``names`` (more columns are ignored; ``#`` and ``%`` start comments, blank lines are
+    skipped): an (n, len(names)) float array and the (n,) line numbers (from 1) the rows
+    come from, for messages about them; at most :data:`BLOCK_ROWS` lines a block, so the
+    file is never held whole.
+
+    Raises :class:`ConfigError` naming the file, the line and the field for a line with too
+    few columns, a value that is not a number or not finite, a line longer than
+    :data:`LINE_LIMIT` bytes; and naming the file for one that is not a regular file of at
+    most :data:`NAV_FILE_LIMIT` bytes.
+    """
+    for first, lines in _lines(path, what):
+        rows, numbers = _parse(list(enumerate(lines, start=first)), names, str(path))
+        if len(rows):
+            yield rows, numbers
+
+
+def read_table(path: str | Path, names: Sequence[str], *, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """The whole of :func:`iter_table` (for small files): rows and line numbers; a file with
+    no data line is a :class:`ConfigError`."""
+    blocks = list(iter_table(path, names, what=what))
+    if not blocks:
+        raise ConfigError(f"no data line in the {what}", file=str(path))
+    return np.concatenate([b[0] for b in blocks]), np.concatenate([b[1] for b in blocks])

@@ -22,6 +22,7 @@ accepted it (``--accept-damaged-source``), as a replay of it would be.
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -30,7 +31,7 @@ import numpy as np
 from bench.dut.process import LogLine
 from bench.errors import ConfigError
 from bench.exchange.gpstime import GpsClock
-from bench.exchange.i2nav_text import NAV_COLUMNS, STD_COLUMNS, enu_to_ned, read_table
+from bench.exchange.i2nav_text import NAV_COLUMNS, STD_COLUMNS, count_lines, enu_to_ned, iter_table, max_lines
 from bench.frames import CanBatch
 from bench.record.copy import copy_records
 from bench.record.mcap_io import RecordingReader, RecordingWriter
@@ -50,7 +51,8 @@ DUT_TOPICS = (NAV_SOLUTION_TOPIC.topic, NAV_QUALITY_TOPIC.topic, READY_TOPIC.top
 _DUT_METADATA = ("dut_output", "dut_exit", "dut_traceback", "dut_input_tally")
 #: What the ICD's NAV_SOLUTION can carry (int32 fields): larger values cannot be a DUT's output
 _WIRE_LIMITS = {"lat": 214.0, "lon": 214.0, "h": 2.1e6, "vel_n": 2.1e5, "vel_e": 2.1e5, "vel_d": 2.1e5}
-_BLOCK = 50  # epochs per batch: a quality meets its solution within the receiver's pairing window
+_BLOCK = 50  # epochs per block: a quality meets its solution within the receiver's pairing window
+_GROUP = 40  # blocks encoded and fed at a time (fewer, larger batches; the same frames in the same order)
 
 
 class NavFileError(ConfigError):
@@ -67,11 +69,21 @@ class NavResult:
     quality_of: np.ndarray
 
 
-def _table(path: Path, names: tuple[str, ...], what: str) -> tuple[np.ndarray, np.ndarray]:
+def _table(path: Path, names: tuple[str, ...], what: str) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     try:
-        return read_table(path, names, what=what)
+        yield from iter_table(path, names, what=what)
     except NavFileError:
         raise
+    except ConfigError as exc:
+        raise NavFileError(exc.reason, file=exc.file, key=exc.key) from None
+
+
+def _rows(path: Path, what: str, duration_ns: int | None) -> int:
+    """The number of lines of ``path`` (an upper bound of its data lines), refused when more
+    than a result of the run may have (:func:`~bench.exchange.i2nav_text.max_lines`)."""
+    limit, why = max_lines(duration_ns)
+    try:
+        return count_lines(path, what=what, limit=limit, why=why)
     except ConfigError as exc:
         raise NavFileError(exc.reason, file=exc.file, key=exc.key) from None
 
@@ -90,71 +102,125 @@ def _times(path: Path, clock: GpsClock, week: np.ndarray | int, sow: np.ndarray,
     return t
 
 
-def read_nav_result(nav: str | Path, clock: GpsClock, *, std: str | Path | None = None,
-                    duration_ns: int | None = None) -> NavResult:
-    """Read and check a ``.nav`` result (and its STD file) of a run with ``clock``."""
-    nav = Path(nav)
-    a, lines = _table(nav, NAV_COLUMNS, ".nav result")
-    for k, name in enumerate(NAV_COLUMNS):
-        lim = _WIRE_LIMITS.get(name)
-        if lim is not None and np.any(np.abs(a[:, k]) > lim):
-            i = int(np.flatnonzero(np.abs(a[:, k]) > lim)[0])
-            raise NavFileError(f"line {int(lines[i])}, column {k + 1} ({name}): {a[i, k]:g} is beyond what the ICD's "
-                               f"NAV_SOLUTION carries (|value| <= {lim:g})", file=str(nav))
-    sol = np.zeros(len(a), NAV_SOLUTION_DTYPE)
-    sol["t_ns"] = _times(nav, clock, a[:, 0].astype(np.int64), a[:, 1], lines, duration_ns)
-    sol["rx_ns"] = sol["t_ns"]
-    sol["lat"], sol["lon"], sol["h"] = np.radians(a[:, 2]), np.radians(a[:, 3]), a[:, 4]
-    sol["vel_n"] = enu_to_ned(a[:, 5:8])
-    sol["roll"], sol["pitch"] = np.radians(a[:, 8]), np.radians(a[:, 9])
-    sol["heading"] = np.mod(np.radians(a[:, 10]), 2 * np.pi)
-    sol["heading"][sol["heading"] >= 2 * np.pi] = 0.0
-    sol["mode"], sol["valid"], sol["frame"] = 5, 1, 0
-    sol["epoch"] = np.arange(len(a)) % 256
-    qual = np.zeros(0, NAV_QUALITY_DTYPE)
-    of = np.zeros(0, np.int64)
-    if std is not None:
-        s, s_lines = _table(Path(std), STD_COLUMNS, "STD file")
+def _solutions(nav: Path, clock: GpsClock, duration_ns: int | None) -> np.ndarray:
+    """The NAV_SOLUTION records of the ``.nav`` result, read block by block into one array."""
+    sol = np.zeros(_rows(nav, ".nav result", duration_ns), NAV_SOLUTION_DTYPE)
+    n = 0
+    for a, lines in _table(nav, NAV_COLUMNS, ".nav result"):
+        for k, name in enumerate(NAV_COLUMNS):
+            lim = _WIRE_LIMITS.get(name)
+            if lim is not None and np.any(np.abs(a[:, k]) > lim):
+                i = int(np.flatnonzero(np.abs(a[:, k]) > lim)[0])
+                raise NavFileError(f"line {int(lines[i])}, column {k + 1} ({name}): {a[i, k]:g} is beyond what the "
+                                   f"ICD's NAV_SOLUTION carries (|value| <= {lim:g})", file=str(nav))
+        b = sol[n : n + len(a)]
+        b["t_ns"] = _times(nav, clock, a[:, 0].astype(np.int64), a[:, 1], lines, duration_ns)
+        b["rx_ns"] = b["t_ns"]
+        b["lat"], b["lon"], b["h"] = np.radians(a[:, 2]), np.radians(a[:, 3]), a[:, 4]
+        b["vel_n"] = enu_to_ned(a[:, 5:8])
+        b["roll"], b["pitch"] = np.radians(a[:, 8]), np.radians(a[:, 9])
+        heading = np.mod(np.radians(a[:, 10]), 2 * np.pi)
+        heading[heading >= 2 * np.pi] = 0.0
+        b["heading"] = heading
+        b["mode"], b["valid"], b["frame"] = 5, 1, 0
+        b["epoch"] = np.arange(n, n + len(a)) % 256
+        n += len(a)
+    if n == 0:
+        raise NavFileError("no data line in the .nav result", file=str(nav))
+    return sol[:n]
+
+
+class _Epochs:
+    """The solution that a time of validity belongs to: the one with that time (the last of
+    them when the result repeats it), or -1."""
+
+    def __init__(self, t_ns: np.ndarray):
+        self.t = t_ns
+        self.sorted = bool(np.all(np.diff(t_ns) > 0))
+        if not self.sorted:
+            self.order = np.argsort(t_ns, kind="stable")
+            self.ts = t_ns[self.order]
+
+    def of(self, t: np.ndarray) -> np.ndarray:
+        if self.sorted:
+            i = np.minimum(np.searchsorted(self.t, t), len(self.t) - 1)
+            return np.where(self.t[i] == t, i, -1)
+        j = np.searchsorted(self.ts, t, side="right") - 1  # the last of equal times: the file's last
+        ok = (j >= 0) & (self.ts[np.maximum(j, 0)] == t)
+        return np.where(ok, self.order[np.maximum(j, 0)], -1)
+
+
+def _qualities(std: Path, clock: GpsClock, sol: np.ndarray, duration_ns: int | None
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """The NAV_QUALITY records of the STD lines at the time of a solution (in the file's
+    order) and the index of the solution of each, read block by block."""
+    qual = np.zeros(_rows(std, "STD file", duration_ns), NAV_QUALITY_DTYPE)
+    of = np.zeros(len(qual), np.int64)
+    epochs = _Epochs(sol["t_ns"])
+    n = rows = 0
+    for s, s_lines in _table(std, STD_COLUMNS, "STD file"):
+        rows += len(s)
         neg = np.argwhere(s[:, 1:] < 0)
         if len(neg):
             i, k = (int(x) for x in neg[0])
             raise NavFileError(f"line {int(s_lines[i])}, column {k + 2} ({STD_COLUMNS[k + 1]}): a standard deviation "
                                f"is negative ({s[i, k + 1]:g})", file=str(std))
-        t = _times(Path(std), clock, clock.week, s[:, 0], s_lines, duration_ns)
-        idx = np.searchsorted(sol["t_ns"], t) if np.all(np.diff(sol["t_ns"]) > 0) else None
-        match = {int(v): i for i, v in enumerate(sol["t_ns"])} if idx is None else None
-        pick = []
-        for j, tj in enumerate(t.tolist()):
-            i = match.get(tj) if match is not None else (int(idx[j]) if idx[j] < len(sol) and
-                                                          sol["t_ns"][idx[j]] == tj else None)
-            if i is not None:
-                pick.append((j, i))
-        qual = np.zeros(len(pick), NAV_QUALITY_DTYPE)
-        if pick:
-            js, is_ = np.array(pick).T
-            of = is_.astype(np.int64)
-            qual["t_ns"] = qual["rx_ns"] = sol["t_ns"][is_]
-            qual["epoch"] = sol["epoch"][is_]
-            qual["sigma_pos"] = np.abs(enu_to_ned(s[js, 1:4]))
-            qual["sigma_vel"] = np.abs(enu_to_ned(s[js, 4:7]))
-            qual["sigma_att"] = np.radians(s[js][:, [9, 8, 7]])
+        t = _times(std, clock, clock.week, s[:, 0], s_lines, duration_ns)
+        idx = epochs.of(t)
+        js = np.flatnonzero(idx >= 0)
+        is_ = idx[js]
+        q = qual[n : n + len(js)]
+        q["t_ns"] = q["rx_ns"] = sol["t_ns"][is_]
+        q["epoch"] = sol["epoch"][is_]
+        q["sigma_pos"] = np.abs(enu_to_ned(s[js, 1:4]))
+        q["sigma_vel"] = np.abs(enu_to_ned(s[js, 4:7]))
+        q["sigma_att"] = np.radians(s[js][:, [9, 8, 7]])
+        of[n : n + len(js)] = is_
+        n += len(js)
+    if rows == 0:
+        raise NavFileError("no data line in the STD file", file=str(std))
+    return qual[:n], of[:n]
+
+
+def read_nav_result(nav: str | Path, clock: GpsClock, *, std: str | Path | None = None,
+                    duration_ns: int | None = None) -> NavResult:
+    """Read and check a ``.nav`` result (and its STD file) of a run with ``clock``.
+
+    The files are read in blocks (never whole, nor as Python numbers: 92 bytes a line held);
+    each is refused first when it has more lines than a result of the run may have
+    (:func:`~bench.exchange.i2nav_text.max_lines`: 10 kHz over the run and 1 s after it,
+    at most 1,000,000), is larger than 256 MiB or has a line longer than 4096 bytes."""
+    nav = Path(nav)
+    sol = _solutions(nav, clock, duration_ns)
+    if std is None:
+        return NavResult(sol, np.zeros(0, NAV_QUALITY_DTYPE), np.zeros(0, np.int64))
+    qual, of = _qualities(Path(std), clock, sol, duration_ns)
     return NavResult(sol, qual, of)
 
 
-def _frames(result: NavResult) -> list[CanBatch]:
-    """The CAN FD frames of the result in blocks of epochs: each block's solutions, then the
-    qualities of those solutions (a quality meets its solution within the receiver's
-    pairing window whatever the order of the files' lines)."""
+def _frames(result: NavResult) -> Iterator[CanBatch]:
+    """The CAN FD frames of the result in blocks of :data:`_BLOCK` epochs, made as they are
+    fed: each block's solutions, then the qualities of those solutions (a quality meets its
+    solution within the receiver's pairing window whatever the order of the files' lines).
+    :data:`_GROUP` blocks are encoded and yielded together, their frames in that order."""
     enc = CanEncoder(wire_range=True)
-    out: list[CanBatch] = []
     sol, qual = result.solutions, result.qualities
     block_of = result.quality_of // _BLOCK
-    for b, i in enumerate(range(0, len(sol), _BLOCK)):
-        out.append(enc.encode_records("NAV_SOLUTION", sol[i : i + _BLOCK]))
-        mine = np.flatnonzero(block_of == b)
-        if len(mine):
-            out.append(enc.encode_records("NAV_QUALITY", qual[mine]))
-    return out
+    order = np.argsort(block_of, kind="stable")  # each block's qualities in the file's order
+    blocks = -(-len(sol) // _BLOCK)
+    edges = np.searchsorted(block_of[order], np.arange(blocks + 1))
+    for g in range(0, blocks, _GROUP):
+        i0, i1 = g * _BLOCK, min(len(sol), (g + _GROUP) * _BLOCK)
+        sols = enc.encode_records("NAV_SOLUTION", sol[i0:i1])
+        mine = order[edges[g] : edges[min(g + _GROUP, blocks)]]
+        if not len(mine):
+            yield sols
+            continue
+        quals = enc.encode_records("NAV_QUALITY", qual[mine])
+        if len(sols) != i1 - i0 or len(quals) != len(mine):  # pragma: no cover - one frame a record (ICD)
+            raise AssertionError("NAV_SOLUTION and NAV_QUALITY are one CAN FD frame each")
+        rank = np.concatenate([np.arange(i0, i1) // _BLOCK * 2, block_of[mine] * 2 + 1])
+        yield CanBatch.concat([sols, quals]).take(np.argsort(rank, kind="stable"))
 
 
 def write_output(run: str | Path, out: str | Path, result: NavResult | None, *,
@@ -190,6 +256,8 @@ def write_output(run: str | Path, out: str | Path, result: NavResult | None, *,
             if result is not None:
                 for batch in _frames(result):
                     recorder.feed(batch)
+                result = None  # in the recording now: not held while the views read it back (a caller's
+                # reference keeps it: import_nav passes it on without one)
             recorder.process()
             if log:
                 recorder.log(log, _duration_ns(meta) or 0)
@@ -227,14 +295,14 @@ def import_nav(nav: str | Path, run: str | Path, out: str | Path, *, std: str | 
     that cannot be read or an ``out`` that cannot be written.
     """
     clock, duration_ns = run_clock(run)
-    result = read_nav_result(nav, clock, std=std, duration_ns=duration_ns)
     files = {"nav": str(Path(nav).resolve()), "std": str(Path(std).resolve()) if std else ""}
     # the run's own DUT failing (dut_failed, dut_error) is not the imported DUT's ending: the
     # copy ends complete, and the run that stopped early is a problem of its source (its
     # inputs end where that DUT stopped): ERROR unless accepted. A bench ending is kept.
     end = ("complete", "") if _ending(run) in DUT_ENDINGS else None
-    return write_output(run, out, result, end=end, start_extra={"dut_import": json.dumps(files)},
-                        overwrite=overwrite, accept_damaged_source=accept_damaged_source)
+    return write_output(run, out, read_nav_result(nav, clock, std=std, duration_ns=duration_ns),  # held by it alone
+                        end=end, start_extra={"dut_import": json.dumps(files)}, overwrite=overwrite,
+                        accept_damaged_source=accept_damaged_source)
 
 
 #: The endings of a run that belong to its DUT (not kept when another DUT's output is imported).

@@ -106,8 +106,9 @@ class RecordingReader:
         return out
 
     def read_columnar(self, topic: str) -> np.ndarray:
-        """All readable records of a columnar topic, concatenated in write order."""
-        parts: list[np.ndarray] = []
+        """All readable records of a columnar topic, concatenated in write order (into one
+        growing buffer, block by block: never the blocks and their concatenation at once)."""
+        buf = bytearray()
         dtype: np.dtype | None = None
         for schema, ch, _, data in self._iter([topic]):
             if ch.message_encoding != COLUMNAR:
@@ -115,14 +116,14 @@ class RecordingReader:
             if dtype is None:
                 try:
                     dtype = dtype_from_json(json.loads(schema.data)["dtype"])
-                except (AttributeError, KeyError, TypeError, ValueError) as exc:
+                except (AttributeError, KeyError, TypeError, ValueError, RecursionError) as exc:
                     raise RecordingError(f"{self.path}: topic {topic}: its schema does not parse: {exc}") from None
             if len(data) % dtype.itemsize:
                 raise RecordingError(f"{self.path}: topic {topic}: a block of {len(data)} B is not whole records")
-            parts.append(np.frombuffer(data, dtype=dtype))
+            buf += data
         if dtype is None:
             raise RecordingError(f"{self.path}: no messages on topic {topic}")
-        return np.concatenate(parts)
+        return np.frombuffer(buf, dtype=dtype)  # writable, as a concatenation is
 
     def read_chunks(self, topic: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """All chunks of a chunk topic: ``(t_ns, offsets, buf)`` in write order."""
@@ -150,9 +151,11 @@ class RecordingReader:
         """(log time ns, document) of each message of a JSON topic."""
         for _, _, log_time, data in self._iter([topic]):
             try:
-                yield log_time, json.loads(data)
-            except ValueError as exc:
-                raise RecordingError(f"{self.path}: topic {topic}: a message is not JSON: {exc}") from None
+                doc = json.loads(data)
+            except (ValueError, RecursionError) as exc:  # RecursionError: nested deeper than Python parses
+                raise RecordingError(f"{self.path}: topic {topic}: a message is not JSON: "
+                                     f"{exc if isinstance(exc, ValueError) else 'nested too deep'}") from None
+            yield log_time, doc
 
     def iter_raw(self, topics: list[str] | None = None) -> Iterator[tuple[str, int, bytes]]:
         """(topic, log time, payload bytes) of every readable message, in file order."""

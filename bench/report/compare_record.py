@@ -1,19 +1,22 @@
 """A results record read for ``bench compare``: checked, its cases and criteria by key.
 
-Only what the comparison uses is checked (a criterion's id, comparator, value, verdict,
-unit, limit and variant); unknown fields are ignored. Anything else raises
+The file is read by :func:`bench.config.files.read_json`: a regular file of at most 256
+MiB, nested at most 64 levels, every number finite (a raw ``NaN``, ``Infinity`` or
+``1e999`` is refused; an infinite measurement is the string ``"inf"``). Only what the
+comparison uses is checked further (a criterion's id, comparator, value, verdict, unit,
+limit and variant); unknown fields are ignored. Anything else raises
 :class:`~bench.errors.ConfigError` naming the file and the field.
 """
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from bench.acceptance.criteria import COMPARATORS
+from bench.config.files import read_json
 from bench.errors import ConfigError
 
 __all__ = ["Key", "Record", "load_record", "value_of"]
@@ -55,17 +58,13 @@ def _check(ok: bool, path: str, key: str, expected: str, found: Any) -> None:
 def load_record(path: str | Path) -> Record:
     """Read and check a results record, or the ``results.json`` in folder ``path``.
 
-    Raises :class:`OSError` for an unreadable file and :class:`ConfigError` naming the file
-    and the field for anything that is not a results record."""
+    Raises :class:`ConfigError` naming the file (and the field) for a file that cannot be
+    read or is not a results record."""
     p = Path(path)
     if p.is_dir():
         p = p / "results.json"
     name = str(p)
-    text = p.read_text(encoding="utf-8", errors="replace")
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ConfigError(f"not a results record: not JSON ({exc})", file=name) from None
+    data = read_json(p, what="results record")
     _check(isinstance(data, dict), name, "", "a JSON object", type(data).__name__)
     schema = data.get("schema")
     _check(isinstance(schema, str) and schema.startswith("bench.results"), name, "schema",

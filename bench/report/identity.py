@@ -33,12 +33,12 @@ import hashlib
 import json
 import platform
 import re
-import tomllib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from bench.errors import BenchError
+from bench.config.files import parse_toml
+from bench.errors import BenchError, ConfigError
 
 __all__ = ["run_identity", "identification", "report_id", "IDENTITY_VERSION", "ROLES", "sha256_file"]
 
@@ -203,9 +203,9 @@ def _case_doc(attachments: Mapping[str, bytes], problems: list[str]) -> dict[str
     names = [n for n in attachments if n.startswith("case/")]
     if not names:
         return {}
-    try:
-        return tomllib.loads(attachments[names[0]].decode("utf-8"))
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+    try:  # nested at most 64 levels, every number finite
+        return parse_toml(attachments[names[0]].decode("utf-8"), file=names[0], what="test case file")
+    except (UnicodeDecodeError, ConfigError) as exc:
         problems.append(f"the attached case {names[0]} does not parse: {exc}")
         return {}
 

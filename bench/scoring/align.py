@@ -108,49 +108,68 @@ def _so3_hermite(q0: np.ndarray, q1: np.ndarray, w0: np.ndarray, w1: np.ndarray,
     return quat_mul(q0, _exp(r))
 
 
+class _Interpolator:
+    """:func:`interpolate_truth` with the truth-wide work (distance driven, position rates,
+    body rates, the polar test and ECEF truth) done once, for query times in chunks."""
+
+    def __init__(self, truth: np.ndarray):
+        self.truth = truth
+        self.dist_all = cumulative_distance(truth)
+        self.polar = is_polar(truth["lat"])
+        if self.polar:
+            self.p = polar_truth(truth)
+            return
+        lat_all, h_all, vel_all = truth["lat"], truth["h"], truth["vel_n"]
+        self.rates = np.column_stack(earth.position_rates(lat_all, h_all, vel_all))
+        self.pos_all = np.column_stack([lat_all, np.unwrap(truth["lon"]), h_all])
+        self.w = _omega_nb_b(truth)
+
+    def __call__(self, t_ns: np.ndarray) -> AlignedTruth:
+        truth = self.truth
+        tt = truth["t_ns"]
+        t_ns = np.asarray(t_ns, dtype=np.int64)
+        covered = (t_ns >= tt[0]) & (t_ns <= tt[-1])
+        i = np.clip(np.searchsorted(tt, t_ns, side="right") - 1, 0, len(tt) - 2)
+        dt_ns = (tt[i + 1] - tt[i]).astype(np.float64)
+        x = np.clip((t_ns - tt[i]).astype(np.float64) / dt_ns, 0.0, 1.0)
+        exact = t_ns == tt[i]
+        last = t_ns == tt[-1]
+        dt = dt_ns * 1e-9
+
+        dist_all = self.dist_all
+        dist = dist_all[i] + x * (dist_all[i + 1] - dist_all[i])
+        if self.polar:
+            return _interpolate_polar(truth, self.p, i, x, dt, exact, last, covered, dist, dist_all)
+
+        pos_all, rates, w = self.pos_all, self.rates, self.w
+        vel_all = truth["vel_n"]
+        pos = _hermite(pos_all[i], pos_all[i + 1], rates[i] * dt[:, None], rates[i + 1] * dt[:, None], x)
+        acc_all = truth["acc_n"]
+        vel = _hermite(vel_all[i], vel_all[i + 1], acc_all[i] * dt[:, None], acc_all[i + 1] * dt[:, None], x)
+        q = _so3_hermite(truth["q_bn"][i], truth["q_bn"][i + 1], w[i] * dt[:, None], w[i + 1] * dt[:, None], x)
+        psi, theta, gamma = quat_to_euler(q)
+        euler = np.column_stack([psi, theta, gamma])
+
+        # samples hit exactly: use the recorded values untouched
+        for sel, j in ((exact, i), (last, np.full_like(i, len(tt) - 1))):
+            if np.any(sel):
+                pos[sel] = pos_all[j[sel]]
+                vel[sel] = vel_all[j[sel]]
+                q[sel] = truth["q_bn"][j[sel]]
+                euler[sel] = truth["euler"][j[sel]]
+                dist[sel] = dist_all[j[sel]]
+        lon = (pos[:, 1] + np.pi) % (2.0 * np.pi) - np.pi
+        return AlignedTruth(covered, pos[:, 0], lon, pos[:, 2], vel, q, euler, dist)
+
+
 def interpolate_truth(truth: np.ndarray, t_ns: np.ndarray) -> AlignedTruth:
     """Truth records (sorted, unique ``t_ns``) interpolated at times ``t_ns`` (M,)."""
-    tt = truth["t_ns"]
-    t_ns = np.asarray(t_ns, dtype=np.int64)
-    covered = (t_ns >= tt[0]) & (t_ns <= tt[-1])
-    i = np.clip(np.searchsorted(tt, t_ns, side="right") - 1, 0, len(tt) - 2)
-    dt_ns = (tt[i + 1] - tt[i]).astype(np.float64)
-    x = np.clip((t_ns - tt[i]).astype(np.float64) / dt_ns, 0.0, 1.0)
-    exact = t_ns == tt[i]
-    last = t_ns == tt[-1]
-    dt = dt_ns * 1e-9
-
-    dist_all = cumulative_distance(truth)
-    dist = dist_all[i] + x * (dist_all[i + 1] - dist_all[i])
-    if is_polar(truth["lat"]):
-        return _interpolate_polar(truth, i, x, dt, exact, last, covered, dist, dist_all)
-
-    lat_all, h_all, vel_all = truth["lat"], truth["h"], truth["vel_n"]
-    lon_all = np.unwrap(truth["lon"])
-    rates = np.column_stack(earth.position_rates(lat_all, h_all, vel_all))
-    pos_all = np.column_stack([lat_all, lon_all, h_all])
-    pos = _hermite(pos_all[i], pos_all[i + 1], rates[i] * dt[:, None], rates[i + 1] * dt[:, None], x)
-    acc_all = truth["acc_n"]
-    vel = _hermite(vel_all[i], vel_all[i + 1], acc_all[i] * dt[:, None], acc_all[i + 1] * dt[:, None], x)
-    w = _omega_nb_b(truth)
-    q = _so3_hermite(truth["q_bn"][i], truth["q_bn"][i + 1], w[i] * dt[:, None], w[i + 1] * dt[:, None], x)
-    psi, theta, gamma = quat_to_euler(q)
-    euler = np.column_stack([psi, theta, gamma])
-
-    # samples hit exactly: use the recorded values untouched
-    for sel, j in ((exact, i), (last, np.full_like(i, len(tt) - 1))):
-        if np.any(sel):
-            pos[sel] = pos_all[j[sel]]
-            vel[sel] = vel_all[j[sel]]
-            q[sel] = truth["q_bn"][j[sel]]
-            euler[sel] = truth["euler"][j[sel]]
-            dist[sel] = dist_all[j[sel]]
-    lon = (pos[:, 1] + np.pi) % (2.0 * np.pi) - np.pi
-    return AlignedTruth(covered, pos[:, 0], lon, pos[:, 2], vel, q, euler, dist)
+    return _Interpolator(truth)(t_ns)
 
 
 def _interpolate_polar(
     truth: np.ndarray,
+    p: dict[str, np.ndarray],
     i: np.ndarray,
     x: np.ndarray,
     dt: np.ndarray,
@@ -160,8 +179,8 @@ def _interpolate_polar(
     dist: np.ndarray,
     dist_all: np.ndarray,
 ) -> AlignedTruth:
-    """:func:`interpolate_truth` of a truth that passes a pole: in ECEF, nothing singular."""
-    p = polar_truth(truth)
+    """:func:`interpolate_truth` of a truth that passes a pole (``p``: its
+    :func:`~bench.scoring.polar.polar_truth`): in ECEF, nothing singular."""
     d = dt[:, None]
     x_e = _hermite(p["x"][i], p["x"][i + 1], p["v"][i] * d, p["v"][i + 1] * d, x)
     v_e = _hermite(p["v"][i], p["v"][i + 1], p["a"][i] * d, p["a"][i + 1] * d, x)
@@ -222,23 +241,38 @@ class NavErrors:
         return np.column_stack([e * s + n * c, e * c - n * s])
 
 
+#: DUT epochs aligned at a time: the temporaries of one chunk (a few hundred bytes an epoch)
+#: stay small however long the output; the values are those of one pass, element by element.
+CHUNK = 1 << 14
+
+
 def nav_errors(truth: np.ndarray, nav: np.ndarray) -> NavErrors:
     """Errors of the DUT solution records ``nav`` (NAV_SOLUTION_DTYPE) against ``truth``.
 
     Epochs are sorted by time of validity; a repeated time of validity keeps its first
-    arrival only.
-    """
+    arrival only. Computed :data:`CHUNK` epochs at a time into the result's arrays."""
     order = np.argsort(nav["t_ns"], kind="stable")
     t_sorted = nav["t_ns"][order]
     keep = np.concatenate([[True], np.diff(t_sorted) > 0]) if len(order) else np.zeros(0, bool)
     index = order[keep]
-    d = nav[index]
-    t_ns = d["t_ns"].astype(np.int64)
-    tr = interpolate_truth(truth, t_ns)
+    t_ns = t_sorted[keep].astype(np.int64)
+    del order, keep, t_sorted
+    m = len(index)
+    out = NavErrors(t_ns, np.zeros(m, bool), np.zeros(m, bool), np.zeros((m, 3)), np.zeros((m, 3)), np.zeros((m, 3)),
+                    np.zeros(m), np.zeros(m), np.zeros(m), index, np.zeros(m))
+    interp = _Interpolator(truth)
+    for a in range(0, m, CHUNK):
+        b = min(m, a + CHUNK)
+        _errors_into(out, a, b, interp(t_ns[a:b]), nav[index[a:b]])
+    return out
+
+
+def _errors_into(out: NavErrors, a: int, b: int, tr: AlignedTruth, d: np.ndarray) -> None:
+    """The errors of epochs ``a:b`` (records ``d``, truth ``tr`` at their times) into ``out``."""
     x_true = earth.geodetic_to_ecef(tr.lat, tr.lon, tr.h)
     x_dut = earth.geodetic_to_ecef(d["lat"], d["lon"], d["h"])
     C = earth.C_en(tr.lat, tr.lon)
-    pos = np.einsum("nij,nj->ni", C, x_dut - x_true)
+    out.pos[a:b] = np.einsum("nij,nj->ni", C, x_dut - x_true)
     if tr.polar:  # velocity and attitude taken into the truth's ENU frame first
         vel_dut, C_dut = between_frames(
             tr.lat, tr.lon, d["lat"], d["lon"], d["vel_n"], euler_to_dcm(d["heading"], d["pitch"], d["roll"])
@@ -248,8 +282,8 @@ def nav_errors(truth: np.ndarray, nav: np.ndarray) -> NavErrors:
     else:
         vel_dut, heading, pitch, roll = d["vel_n"], d["heading"], d["pitch"], d["roll"]
         q_dut = euler_to_quat(d["heading"], d["pitch"], d["roll"])
-    vel = vel_dut - tr.vel_n
-    att = np.column_stack(
+    out.vel[a:b] = vel_dut - tr.vel_n
+    out.att[a:b] = np.column_stack(
         [
             wrap_pi(heading - tr.euler[:, 0]),
             wrap_pi(pitch - tr.euler[:, 1]),
@@ -257,6 +291,9 @@ def nav_errors(truth: np.ndarray, nav: np.ndarray) -> NavErrors:
         ]
     )
     q_err = quat_mul(q_dut, quat_conj(tr.q_bn))
-    att_angle = np.linalg.norm(quat_to_rotvec(q_err), axis=1)
-    usable = tr.covered & (d["valid"] != 0)
-    return NavErrors(t_ns, usable, tr.covered, pos, vel, att, att_angle, tr.distance, tr.lat, index, tr.euler[:, 0])
+    out.att_angle[a:b] = np.linalg.norm(quat_to_rotvec(q_err), axis=1)
+    out.usable[a:b] = tr.covered & (d["valid"] != 0)
+    out.covered[a:b] = tr.covered
+    out.distance[a:b] = tr.distance
+    out.lat[a:b] = tr.lat
+    out.heading[a:b] = tr.euler[:, 0]

@@ -177,11 +177,12 @@ def _load(reader: RecordingReader, path: Path) -> RunData:
     run.run_end = dict(meta["run_end"]) if "run_end" in meta else None
     run.dut_exit = dict(meta.get("dut_exit", {}))
     truth = _columnar(reader, topics, TRUTH)
-    if truth is not None:
+    if truth is not None and not np.all(np.diff(truth["t_ns"]) > 0):  # else already so: no copy
         order = np.argsort(truth["t_ns"], kind="stable")
         truth = truth[order]
         keep = np.concatenate([[True], np.diff(truth["t_ns"]) > 0])
-        run.truth = truth[keep]
+        truth = truth[keep]
+    run.truth = truth
     run.nav = _columnar(reader, topics, NAV_SOLUTION)
     run.quality = _columnar(reader, topics, NAV_QUALITY)
     run.timing = _columnar(reader, topics, TIMING)

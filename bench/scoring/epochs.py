@@ -38,6 +38,7 @@ __all__ = [
     "out_of_range",
     "first_arrivals",
     "distinct",
+    "subset",
 ]
 
 _HALF_PI = math.pi / 2.0
@@ -65,6 +66,11 @@ class OutputIntegrity:
     waived: Mapping[str, str] = field(default_factory=dict)
     reason: str = ""
     invalid_after_ns: int | None = None
+
+
+def subset(records: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """``records[mask]``, or ``records`` itself when the mask selects all (no copy)."""
+    return records if bool(np.all(mask)) else records[mask]
 
 
 def distinct(t_ns: np.ndarray) -> np.ndarray:
@@ -115,32 +121,35 @@ def time_jumps(t_ns: np.ndarray, rx_ns: np.ndarray, jump_ns: int) -> tuple[int, 
 
 
 def first_arrivals(nav: np.ndarray) -> np.ndarray:
-    """The first arrival of each distinct time of validity, in time order."""
+    """The first arrival of each distinct time of validity, in time order (``nav`` itself,
+    not a copy, when its times of validity already rise strictly)."""
+    if bool(np.all(np.diff(nav["t_ns"]) > 0)):
+        return nav
     _, first = np.unique(nav["t_ns"], return_index=True)
     return nav[first]
 
 
 def counter_faults(nav: np.ndarray) -> tuple[int, dict]:
     """Epochs whose counter disagrees with the step of their time of validity."""
-    d = first_arrivals(nav)
-    period = _period(d["t_ns"])
-    if len(d) < 2 or period <= 0:
+    t, first = np.unique(nav["t_ns"], return_index=True)  # the first arrivals, in time order
+    period = _period(t)
+    if len(t) < 2 or period <= 0:
         return 0, {}
-    steps = np.diff(d["t_ns"].astype(np.int64)) / period
+    steps = np.diff(t.astype(np.int64)) / period
     k = np.rint(steps)
     clear = np.abs(steps - k) <= 0.25
-    dep = np.diff(d["epoch"].astype(np.int64)) % 256
+    dep = np.diff(nav["epoch"][first].astype(np.int64)) % 256
     bad = clear & (dep != (k.astype(np.int64) % 256))
     stuck = bad & (dep == 0)
     details: dict = {"stuck": int(np.sum(stuck)), "other": int(np.sum(bad & ~stuck)), "period_s": period * 1e-9}
     if bad.any():
-        details["first_at_s"] = float(d["t_ns"][1:][bad][0]) * 1e-9
+        details["first_at_s"] = float(t[1:][bad][0]) * 1e-9
     return int(np.sum(bad)), details
 
 
 def out_of_range(nav: np.ndarray, bounds: EpochBounds) -> tuple[int, dict]:
     """Epochs flagged valid with a value not finite or outside its physical range."""
-    v = nav[nav["valid"] != 0]
+    v = subset(nav, nav["valid"] != 0)
     lo_h, hi_h = bounds.height_m
     speed = np.linalg.norm(v["vel_n"], axis=1) if len(v) else np.zeros(0)
     checks = {

@@ -93,7 +93,7 @@ def _sequence(name: str, nav: np.ndarray, window: Window, bounds: EpochBounds) -
     """The sequence and range checks over the epochs that arrived in the window or whose
     time of validity falls in it, in arrival order."""
     sel = window.mask(nav["t_ns"]) | window.mask(nav["rx_ns"])
-    arrived = nav[sel]
+    arrived = epochs.subset(nav, sel)
     if len(arrived) == 0:
         raise NoDataError(f"no DUT epoch in window {window.text()}")
     if name == "repeated":
@@ -133,7 +133,7 @@ def output_value(
     if name in _SEQUENCE:
         return _sequence(name, nav, window, bounds or EpochBounds())
     sel = window.mask(nav["t_ns"])
-    arrived = nav[sel]  # arrival order
+    arrived = epochs.subset(nav, sel)  # arrival order
     t_unique = epochs.distinct(arrived["t_ns"])
     details: dict[str, Any] = {"epochs": len(arrived), "window": window.text()}
     if name in ("missing_epochs", "missing_fraction", "max_gap"):

@@ -9,7 +9,6 @@ line endpoints and shared vertices (within 1 cm) into a graph for route distance
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,7 +18,7 @@ import shapely
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from bench.config.files import TEXT_LIMIT, read_bytes
+from bench.config.files import TEXT_LIMIT, parse_json, read_bytes
 from bench.errors import ConfigError
 
 R_EARTH = 6_378_137.0
@@ -84,10 +83,10 @@ class RoadNetwork:
                           ) -> RoadNetwork:
         """A network from the text of a GeoJSON file (``file`` names it in errors)."""
         p = file
-        try:
-            doc = json.loads(text)
-        except ValueError as exc:
-            raise ConfigError(f"malformed GeoJSON: {exc}", file=p) from None
+        try:  # nested at most 64 levels, every number finite
+            doc = parse_json(text, file=p, what="road network file")
+        except ConfigError as exc:
+            raise ConfigError(f"malformed GeoJSON: {exc.reason}", file=p, key=exc.key) from None
         if not isinstance(doc, dict) or doc.get("type") != "FeatureCollection":
             raise ConfigError("expected a GeoJSON FeatureCollection", file=p, key="type")
         lines = []

@@ -143,14 +143,26 @@ def _truth_views(truth: np.ndarray, rate_hz: float, origin: tuple[float, float, 
             fx.ViewTopic("/foxglove/plot/truth", plot, src)]
 
 
-def _quality_at(quality: np.ndarray | None, t_ns: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
-    """The NAV_QUALITY record (first arrival) of each time of validity and whether there
-    is one (``None`` and all False without NAV_QUALITY)."""
+class _QualityAt:
+    """The NAV_QUALITY record (first arrival) of each time of validity ``t_ns``, taken as
+    ``self[k]`` for the times picked by ``k`` (never for all at once), and whether there is
+    one (``has``; no record and all False without NAV_QUALITY)."""
+
+    def __init__(self, quality: np.ndarray, t_ns: np.ndarray):
+        self.q = first_arrivals(quality)
+        self.i = np.clip(np.searchsorted(self.q["t_ns"], t_ns), 0, len(self.q) - 1)
+        self.has = self.q["t_ns"][self.i] == t_ns
+
+    def __getitem__(self, k: np.ndarray) -> np.ndarray:
+        return self.q[self.i[k]]
+
+
+def _quality_at(quality: np.ndarray | None, t_ns: np.ndarray) -> tuple[_QualityAt | None, np.ndarray]:
+    """:class:`_QualityAt` of ``t_ns`` and its ``has`` (``None`` and all False without NAV_QUALITY)."""
     if quality is None or len(quality) == 0:
         return None, np.zeros(len(t_ns), bool)
-    q = first_arrivals(quality)
-    i = np.clip(np.searchsorted(q["t_ns"], t_ns), 0, len(q) - 1)
-    return q[i], q["t_ns"][i] == t_ns
+    q = _QualityAt(quality, t_ns)
+    return q, q.has
 
 
 def _dut_views(run: RunData, rate_hz: float, origin: tuple[float, float, float] | None) -> list[fx.ViewTopic]:
@@ -162,7 +174,7 @@ def _dut_views(run: RunData, rate_hz: float, origin: tuple[float, float, float] 
     v = v[display_pick(d["t_ns"][v], rate_hz * SPATIAL_SHARE)]
     if len(v) and origin is not None:
         dv, sig_ok = d[v], has_q[v]
-        cov = q["sigma_pos"][v] ** 2 if q is not None else np.zeros((len(v), 3))
+        cov = q[v]["sigma_pos"] ** 2 if q is not None else np.zeros((len(v), 3))
         ok = sig_ok & np.all(np.isfinite(cov), axis=1)
         cov = np.where(ok[:, None], cov, 0.0)
         ctype = np.where(ok, fx.COVARIANCE_DIAGONAL_KNOWN, fx.COVARIANCE_UNKNOWN)

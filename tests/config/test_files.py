@@ -3,13 +3,25 @@ it is; nothing blocks (a FIFO) or reads forever (/dev/zero)."""
 
 from __future__ import annotations
 
+import math
 import os
 import socket
 from pathlib import Path
 
 import pytest
 
-from bench.config.files import TEXT_LIMIT, file_size_text, read_bytes, read_text, read_toml, regular_file
+from bench.config.files import (
+    MAX_DEPTH,
+    TEXT_LIMIT,
+    file_size_text,
+    parse_json,
+    parse_toml,
+    read_bytes,
+    read_json,
+    read_text,
+    read_toml,
+    regular_file,
+)
 from bench.errors import ConfigError
 
 
@@ -21,7 +33,8 @@ def _err(fn, *args, **kw) -> ConfigError:
 
 def test_a_directory_is_refused(tmp_path):
     e = _err(read_toml, tmp_path, what="test case file")
-    assert e.file == str(tmp_path) and e.reason == "is a directory, not a test case file"
+    assert e.file == str(tmp_path)
+    assert e.reason == "is a directory, not a test case file (a regular file of at most 64 MiB)"
 
 
 def test_a_fifo_is_refused_without_blocking(tmp_path):
@@ -33,7 +46,8 @@ def test_a_fifo_is_refused_without_blocking(tmp_path):
 
 def test_a_character_device_is_refused():
     e = _err(read_toml, "/dev/zero", what="scenario file")
-    assert e.file == "/dev/zero" and e.reason == "is a character device, not a scenario file"
+    assert e.file == "/dev/zero"
+    assert e.reason == "is a character device, not a scenario file (a regular file of at most 64 MiB)"
     e = _err(read_bytes, "/dev/null")
     assert "character device" in e.reason
 
@@ -97,3 +111,70 @@ def test_a_regular_file_reads_as_written(tmp_path):
 @pytest.mark.parametrize("n,text", [(0, "0 bytes"), (1023, "1023 bytes"), (1536, "1.5 KiB"), (70 * 2**20, "70 MiB")])
 def test_sizes_read_as_people_read_them(n, text):
     assert file_size_text(n) == text
+
+
+# -- JSON and TOML: nesting bounded, every number finite (issue 32) --------------------------
+@pytest.mark.parametrize(
+    ("text", "key", "found"),
+    [
+        ('{"cases": [{"criteria": [{"value": 1}, {"value": NaN}]}]}', "cases[0].criteria[1].value", "NaN"),
+        ('{"a": {"b": [1, 2, Infinity]}}', "a.b[2]", "Infinity"),
+        ('{"a": -Infinity}', "a", "-Infinity"),
+        ('{"a": [1e999]}', "a[0]", "1e999"),
+        ('{"a": -1E+400}', "a", "-1E+400"),
+        ('{"a": ' + "9" * 400 + "}", "a", "99999999999999999999..."),
+        ("NaN", "(the document)", "NaN"),
+    ],
+)
+def test_a_json_number_that_is_not_finite_is_refused_naming_its_path(text, key, found):
+    e = _err(parse_json, text, file="r.json")
+    assert (e.file, e.key, e.reason) == ("r.json", key, f"expected a finite number, found {found}")
+
+
+def test_json_infinity_is_taken_where_asked_nan_never():
+    assert parse_json('{"a": [Infinity, -Infinity, 1e-999, 1.5e300]}', file="c.json", infinity=True) == {
+        "a": [math.inf, -math.inf, 0.0, 1.5e300]}
+    e = _err(parse_json, '{"a": Infinity, "b": NaN}', file="c.json", infinity=True)
+    assert e.key == "b" and "NaN" in e.reason
+    assert parse_json('{"e999": "1e999", "s": "NaN [[[["}', file="c.json") == {"e999": "1e999", "s": "NaN [[[["}
+
+
+#: brackets inside strings (escaped quotes too) and comments, which do not nest anything
+BRACKETS_IN_STRINGS_JSON = '["' + "[" * 1000 + '", "\\\"[[[["]'
+BRACKETS_IN_STRINGS_TOML = "\n".join([
+    "a = '" + "[" * 100 + "'  # " + "[" * 100,
+    'b = """\\"""' + "[" * 100 + '"""',
+    "c = \'\'\'" + "{" * 100 + "\'\'\'",
+])
+
+
+@pytest.mark.parametrize(("parse", "deep", "fine"), [
+    (parse_json, "[" * (MAX_DEPTH + 1) + "]" * (MAX_DEPTH + 1), "[" * MAX_DEPTH + "]" * MAX_DEPTH),
+    (parse_json, '{"a":' * 100_000 + "1" + "}" * 100_000, BRACKETS_IN_STRINGS_JSON),
+    (parse_toml, "a = " + "[" * (MAX_DEPTH + 1) + "]" * (MAX_DEPTH + 1), "a = " + "[" * MAX_DEPTH + "]" * MAX_DEPTH),
+    (parse_toml, "a = " + "{b = " * 100_000 + "1" + "}" * 100_000, BRACKETS_IN_STRINGS_TOML),
+])
+def test_nesting_deeper_than_the_limit_is_refused_before_the_parser(parse, deep, fine):
+    e = _err(parse, deep, file="d")
+    assert e.file == "d" and f"nested deeper than the {MAX_DEPTH} levels" in e.reason
+    parse(fine, file="f")  # brackets in strings and comments do not count; 64 levels are fine
+
+
+def test_toml_nan_and_inf_are_refused_wherever_they_are():
+    e = _err(parse_toml, "[dut.config]\ngain = [1.0, { x = nan }]\n", file="case.toml")
+    assert (e.key, e.reason) == ("dut.config.gain[1].x", "expected a finite number, found nan")
+    assert "found -inf" in _err(parse_toml, "a = -inf", file="c").reason
+
+
+def test_a_json_file_is_bounded_before_it_is_parsed(tmp_path):
+    e = _err(read_json, "/dev/zero", what="results record")
+    assert e.reason == "is a character device, not a results record (a regular file of at most 256 MiB)"
+    big = tmp_path / "big.json"
+    with open(big, "wb") as fh:
+        fh.truncate((256 << 20) + 1)
+    assert "more than the 256 MiB limit of a results record" in _err(read_json, big, what="results record").reason
+    bad = tmp_path / "bad.json"
+    bad.write_bytes(b'{"a": 1,}')
+    assert "not JSON" in _err(read_json, bad).reason
+    bad.write_bytes(b'{"a": "\xff"}')
+    assert "not UTF-8" in _err(read_json, bad).reason

@@ -90,5 +90,8 @@ def test_std_file(tmp_path):
     std.write_text("18.010000000 1 2 -3 0.1 0.2 0.3 0.5 0.6 0.7\n")
     with pytest.raises(NavFileError, match=r"s.txt: line 1, column 4 \(sigma_pos_d\): a standard deviation is neg"):
         read_nav_result(nav, CLOCK, std=std)
-    with pytest.raises(NavFileError, match=r"expected a regular file \(STD file\), found nothing"):
+    with pytest.raises(NavFileError, match=r"missing.txt: STD file not found"):
         read_nav_result(nav, CLOCK, std=tmp_path / "missing.txt")
+    with pytest.raises(NavFileError, match=r"/dev/zero: is a character device, not an STD file \(a regular file of at "
+                       r"most 256 MiB\)"):
+        read_nav_result(nav, CLOCK, std="/dev/zero")
