@@ -51,7 +51,7 @@ class DecodeOnly(Estimator):
 
     def __init__(self) -> None:
         self.period_ns = 10_000_000
-        self.next_ns = 0
+        self.next_ns: int | None = None  # the first step's time: no epoch before it (a replay's seek)
         self.received = 0
 
     def configure(self, config: Mapping[str, Any]) -> None:
@@ -59,6 +59,8 @@ class DecodeOnly(Estimator):
 
     def step(self, inputs: DutInputs) -> EstimatorOutput:
         self.received += inputs.count()
+        if self.next_ns is None:
+            self.next_ns = -(-inputs.t_ns // self.period_ns) * self.period_ns
         if inputs.t_ns < self.next_ns:
             return EstimatorOutput()
         if inputs.t_ns < self.next_ns + self.period_ns:  # one epoch (the usual step): no arrays to build
@@ -90,7 +92,7 @@ class DeadReckoning(Estimator):
         self._state: np.ndarray | None = None  # lat, lon, h, q0..q3, prev dtheta (3), speed, distance
         self._speed = 0.0
         self._source = MODE_DOPPLER
-        self._next_out = 0
+        self._next_out: int | None = None  # the first step's time: no epoch before it (a replay's seek)
 
     def configure(self, config: Mapping[str, Any]) -> None:
         self.period_ns = _output_period(config)
@@ -150,6 +152,8 @@ class DeadReckoning(Estimator):
         return out
 
     def _aligning_epochs(self, t_ns: int) -> EstimatorOutput:
+        if self._next_out is None:
+            self._next_out = -(-t_ns // self.period_ns) * self.period_ns
         if t_ns < self._next_out or self.position is None:
             return EstimatorOutput()
         times = np.arange(self._next_out, t_ns + 1, self.period_ns, dtype=np.int64)
@@ -162,7 +166,7 @@ class DeadReckoning(Estimator):
 
     def _outputs(self, t_ns: np.ndarray, states: np.ndarray) -> EstimatorOutput:
         """Epochs on the output grid, each from the IMU frame at that time."""
-        pick = (t_ns >= self._next_out) & (t_ns % self.period_ns == 0)
+        pick = (t_ns >= (self._next_out or 0)) & (t_ns % self.period_ns == 0)
         if not pick.any():
             return EstimatorOutput()
         t = t_ns[pick]
