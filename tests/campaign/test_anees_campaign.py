@@ -28,15 +28,23 @@ def _case(tmp_path: Path) -> Path:
     return tmp_path / "anees_case.toml"
 
 
+@pytest.fixture(scope="module")
+def campaign20(tmp_path_factory) -> tuple[Path, dict]:
+    """The case's campaign of 20 runs (the band of fewer runs cannot tell an error twice the
+    sigma, whose control the case has: at 99 % the band of 6 runs reaches 3.1)."""
+    tmp = tmp_path_factory.mktemp("anees20")
+    case_file = _case(tmp)
+    return case_file, run_campaign(CampaignOptions([str(case_file)], tmp / "campaign", runs=20, workers=2))
+
+
 def _verdicts(items) -> dict[tuple[str, str | None, bool], tuple[str, float | None]]:
     return {(c["id"], c["variant"], c["control"]): (c["verdict"], c["value"]) for c in items}
 
 
-def test_accept_and_campaign_judge_the_anees_mode_alike(tmp_path):
-    case_file = _case(tmp_path)
-    result = run_campaign(CampaignOptions([str(case_file)], tmp_path / "campaign", runs=6, workers=2))
+def test_accept_and_campaign_judge_the_anees_mode_alike(tmp_path, campaign20):
+    case_file, result = campaign20
     judged = result["verdicts"]["ANEES-SYN"]
-    accepted = run_case(prepare_case(load_case(case_file), SuiteOptions(tmp_path / "accept", runs=6)),
+    accepted = run_case(prepare_case(load_case(case_file), SuiteOptions(tmp_path / "accept", runs=20)),
                         SuiteOptions(tmp_path / "accept"))
     doc = case_json(accepted)
     assert _verdicts(judged["criteria"]) == _verdicts(doc["criteria"])
@@ -44,9 +52,9 @@ def test_accept_and_campaign_judge_the_anees_mode_alike(tmp_path):
     got = {(c["id"], c["control"]): c for c in judged["criteria"]}
     honest, control = got["NEES-POS", False], got["NEES-POS", True]
     assert honest["verdict"] == "PASS" and control["verdict"] == "PASS"  # the overconfident DUT FAILs it
-    assert honest["monte_carlo"] == "ANEES over 6 runs in its 99 % band"
-    band = [chi2.ppf(0.005, 6) / 6, chi2.ppf(0.995, 6) / 6]  # chi-square(N) / N, N = 6 runs
-    assert honest["anees"]["band"] == pytest.approx(band) and honest["anees"]["runs"] == 6
+    assert honest["monte_carlo"] == "ANEES over 20 runs in its 99 % band"
+    band = [chi2.ppf(0.005, 20) / 20, chi2.ppf(0.995, 20) / 20]  # chi-square(N) / N, N = 20 runs
+    assert honest["anees"]["band"] == pytest.approx(band) and honest["anees"]["runs"] == 20
     assert control["anees"]["above"] == 1.0
     # the same series and band in results.json's criterion
     acc = {(c["id"], c["control"]): c for c in doc["criteria"]}
@@ -93,18 +101,18 @@ def test_a_record_without_its_series_makes_the_case_error(tmp_path):
     assert again["verdicts"]["ANEES-SYN"]["verdict"] == "ERROR"
 
 
-def test_the_campaign_report_draws_the_anees_against_its_band(tmp_path):
-    case_file = _case(tmp_path)
-    doc = run_campaign(CampaignOptions([str(case_file)], tmp_path / "campaign", runs=3, workers=1))
+def test_the_campaign_report_draws_the_anees_against_its_band(tmp_path, campaign20):
+    _case_file, doc = campaign20
     figs = campaign_figures(doc["aggregate"], doc["verdicts"])
     honest = {f.key: f for f in figs["ANEES-SYN[honest]"]}
     control = {f.key: f for f in figs["ANEES-SYN[overconfident]"]}
     fig = honest["anees-NEES-POS"]
-    band = [chi2.ppf(0.005, 3) / 3, chi2.ppf(0.995, 3) / 3]
+    band = [chi2.ppf(0.005, 20) / 20, chi2.ppf(0.995, 20) / 20]
     assert [fig.values["band_low"], fig.values["band_high"]] == pytest.approx(band)
-    assert fig.values["runs"] == 3 and fig.png.startswith(b"\x89PNG") and "ANEES" in fig.caption
+    assert fig.values["runs"] == 20 and fig.png.startswith(b"\x89PNG") and "ANEES" in fig.caption
     assert control["anees-NEES-POS-control"].values["above"] == 1.0
+    assert {"anees-NEES-HDG", "anees-NEES-POS"} <= set(honest)
     files = build_campaign_report(doc, tmp_path / "report", pdf=False, workers=1)
     html = files.html.read_text()
-    assert "NEES-POS, ANEES over 3 runs" in html and "NEES-POS, must FAIL, ANEES over 3 runs" in html
-    assert "99 % band of 3 runs, chi-square(3) / 3" in html
+    assert "NEES-POS, ANEES over 20 runs" in html and "NEES-POS, must FAIL, ANEES over 20 runs" in html
+    assert "99 % band of 20 runs, chi-square(20) / 20" in html
