@@ -55,7 +55,7 @@ def anees_figure(group: str, c: Mapping[str, Any]) -> Figure | None:
         ax.axhline(b, color=STYLE["limit"], ls="--", lw=1.1, label=f"[{fmt(lo)}, {fmt(hi)}]" if i == 0 else None)
     ax.axhline(1.0, color="0.4", ls=":", lw=1.0, label="1: consistent")
     finite = np.isfinite(y)
-    ax.plot(t[finite], y[finite], ".", color=STYLE["dut"], ms=2.5, label=f"ANEES ({dof} dof per run)")
+    ax.plot(t[finite], y[finite], ".", color=STYLE["dut"], ms=2.5, label=f"ANEES ({dof}-dof NEES per dof)")
     top = max([hi * 1.6, *(y[finite].tolist() or [1.0])])
     if not np.all(finite):
         ax.plot(t[~finite], np.full(int(np.sum(~finite)), top), "^", color=STYLE["limit"], ms=4,
