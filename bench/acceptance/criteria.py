@@ -23,8 +23,9 @@ Over Monte Carlo runs (``[monte_carlo]``):
 * ``anees = c`` (consistency ``within``/``above``/``below`` only) -- the Monte Carlo
   consistency test over the runs (:mod:`bench.acceptance.anees`): at each time of a 1 s
   grid, the NEES per degree of freedom averaged over the N runs (ANEES) against the
-  two-sided chi-square interval of N x dof degrees of freedom of probability ``c``; the
-  value is the share of grid times in (above, below) that band. N = 1 is the per-run test.
+  two-sided interval of probability ``c`` of chi-square(N) / N (whatever the correlation
+  between the axes); the value is the share of grid times in (above, below) that band.
+  N = 1 is the per-run test.
 
 :class:`Limit`, :class:`MonteCarlo` and :class:`Criterion` check themselves when built
 (finite bounds, a known comparator, ``low < high``, a non-negative band, a percentile in
