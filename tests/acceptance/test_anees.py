@@ -233,3 +233,15 @@ def test_the_case_file_takes_the_mode_on_consistency_shares_only():
             _parse(**kw)
         assert "c.toml" in str(exc.value) and "criterion[0]" in str(exc.value), why
         assert "anees" in str(exc.value) or "relative_to" in str(exc.value), (why, str(exc.value))
+
+
+def test_the_sanity_bound_holds_whatever_the_correlation_of_a_runs_errors():
+    """A run's mean NEES per dof is a weighted sum of squared normal draws with weights adding
+    to 1 (the eigenvalues of the errors' correlation over the run and the axes); its chance
+    of exceeding 10.83, the 99.9 % point of chi-square(1), is largest for one draw: 0.1 %."""
+    rng = np.random.default_rng(11)
+    assert chi2.ppf(0.999, 1) == pytest.approx(10.83, abs=0.005)
+    for weights in ([1.0], [0.5, 0.5], [0.8, 0.2], [0.6, 0.3, 0.1], [1 / 3] * 3, [0.9] + [0.01] * 10):
+        w = np.asarray(weights)
+        q = (rng.chisquare(1, (400_000, len(w))) * w).sum(axis=1)
+        assert np.mean(q > 10.83) <= 0.001 + 0.0002, weights
