@@ -19,7 +19,13 @@ Over Monte Carlo runs (``[monte_carlo]``):
   the p-th percentile over the runs (an order statistic chosen by the binomial law) must
   meet it: the upper bound for ``at_most``/``within``, the lower for ``at_least``;
   too few runs for the confidence asked is ERROR;
-* ``aggregate = mean | median | max | min`` -- that statistic of the runs' values.
+* ``aggregate = mean | median | max | min`` -- that statistic of the runs' values;
+* ``anees = c`` (consistency ``within``/``above``/``below`` only) -- the Monte Carlo
+  consistency test over the runs (:mod:`bench.acceptance.anees`): at each time of a 1 s
+  grid, the NEES per degree of freedom averaged over the N runs (ANEES) against the
+  two-sided interval of probability ``c`` of chi-square(N) / N (whatever the correlation
+  between the axes); the value is the share of grid times in (above, below) that band.
+  N = 1 is the per-run test.
 
 :class:`Limit`, :class:`MonteCarlo` and :class:`Criterion` check themselves when built
 (finite bounds, a known comparator, ``low < high``, a non-negative band, a percentile in
@@ -59,7 +65,10 @@ __all__ = [
 
 COMPARATORS = ("at_most", "at_least", "within", "in_range")
 AGGREGATES = ("mean", "median", "max", "min")
-MC_MODES = ("each", "pass_runs", "percentile", "aggregate")
+MC_MODES = ("each", "pass_runs", "percentile", "aggregate", "anees")
+#: consistency statistics the ``anees`` mode judges (the share of grid times in, above or
+#: below the band); ``nees`` (a run's mean) is judged run by run
+ANEES_STATS = ("within", "above", "below")
 
 
 def _finite(x: Any) -> bool:
@@ -118,14 +127,16 @@ class MonteCarlo:
     percentile: float | None = None
     confidence: float | None = None
     aggregate: str | None = None
+    anees: float | None = None  # the band's confidence, a probability
 
     def __post_init__(self) -> None:
         k = "monte_carlo"
         if self.mode not in MC_MODES:
             raise ConfigError(f"unknown mode {self.mode!r}; expected one of {', '.join(MC_MODES)}", key=k)
-        given = {n: getattr(self, n) is not None for n in ("pass_runs", "percentile", "confidence", "aggregate")}
+        given = {n: getattr(self, n) is not None
+                 for n in ("pass_runs", "percentile", "confidence", "aggregate", "anees")}
         wants = {"each": (), "pass_runs": ("pass_runs",), "percentile": ("percentile", "confidence"),
-                 "aggregate": ("aggregate",)}[self.mode]
+                 "aggregate": ("aggregate",), "anees": ("anees",)}[self.mode]
         for name, present in given.items():
             if present != (name in wants):
                 state = "needs" if not present else "takes no"
@@ -143,12 +154,22 @@ class MonteCarlo:
                 raise ConfigError(
                     f"expected a probability between 0 and 1 (or %), found {self.confidence!r}", key=f"{k}.confidence"
                 )
+        if self.mode == "anees" and not (_finite(self.anees) and 0.0 < self.anees < 1.0):  # type: ignore[operator]
+            raise ConfigError(
+                f"expected the band's confidence, a probability between 0 and 1 (or %), found {self.anees!r}",
+                key=f"{k}.anees",
+            )
         if self.mode == "aggregate" and self.aggregate not in AGGREGATES:
             raise ConfigError(
                 f"expected one of {', '.join(AGGREGATES)}, found {self.aggregate!r}", key=f"{k}.aggregate"
             )
 
-    def text(self) -> str:
+    def text(self, runs: int | None = None) -> str:
+        """How the runs combine, for a summary; ``runs``: how many were judged (the ANEES
+        mode names them)."""
+        if self.mode == "anees":
+            over = f"{runs} run{'s' if runs != 1 else ''}" if runs is not None else "the runs"
+            return f"ANEES over {over} in its {_num(100 * (self.anees or 0))} % band"
         if self.mode == "pass_runs":
             return f"at least {self.pass_runs} runs"
         if self.mode == "percentile":
@@ -193,6 +214,15 @@ class Criterion:
             if band is not None and not (_finite(band) and band >= 0.0):
                 what = "band" if name.startswith("marginal") else "tolerance"
                 raise ConfigError(f"expected a finite non-negative {what}, found {band!r}", key=name)
+        if self.monte_carlo.mode == "anees":
+            parts = self.metric.split(".")
+            if parts[0] != "consistency" or len(parts) != 3 or parts[2] not in ANEES_STATS:
+                raise ConfigError(
+                    f"the anees mode judges consistency.<quantity>.{'|'.join(ANEES_STATS)} (the share of grid times "
+                    f"whose ANEES is in, above or below its band), not {self.metric}; a run's mean NEES "
+                    "(consistency.<quantity>.nees) is judged run by run", key="monte_carlo.anees")
+            if self.relative_to is not None:
+                raise ConfigError("a comparison (relative_to) cannot be judged by ANEES", key="monte_carlo.anees")
         if self.monte_carlo.mode == "percentile" and self.limit.comparator == "in_range":
             raise ConfigError(
                 "a percentile bound applies to at_most, at_least or within, not in_range", key="monte_carlo.percentile"
@@ -267,6 +297,7 @@ class Aggregate:
     verdict: Verdict
     margin: float
     reason: str = ""
+    details: dict[str, Any] = field(default_factory=dict)  # the ANEES mode: its series and band
 
 
 def order_statistic_bound(n: int, p: float, confidence: float, upper: bool) -> int | None:
@@ -349,6 +380,8 @@ def aggregate_runs(criterion: Criterion, runs: Sequence[RunValue]) -> Aggregate:
     if len(measured) < len(runs):
         bad = next(r for r in runs if math.isnan(r.value))
         return Aggregate(math.nan, bad.verdict, math.nan, bad.reason)
+    if mc.mode == "anees":
+        return _anees(criterion, runs)
     x = np.sort(np.array(measured))
     if mc.mode == "aggregate":
         fn = {"mean": np.mean, "median": np.median, "max": np.max, "min": np.min}[mc.aggregate or "mean"]
@@ -374,3 +407,17 @@ def aggregate_runs(criterion: Criterion, runs: Sequence[RunValue]) -> Aggregate:
     verdict, margin = judge_value(criterion.limit, band, v)
     side = "upper" if upper else "lower"
     return Aggregate(v, verdict, margin, f"{side} {100 * conf:g} % bound of p{100 * p:g}: run value #{r} of {len(x)}")
+
+
+def _anees(criterion: Criterion, runs: Sequence[RunValue]) -> Aggregate:
+    """The ``anees`` mode (:mod:`bench.acceptance.anees`): the share of grid times whose
+    ANEES over the runs is in (above, below) its band, against the limit."""
+    from bench.acceptance.anees import AneesError, anees_test, series_of
+
+    try:
+        res = anees_test([series_of(r.details, r.seed) for r in runs], float(criterion.monte_carlo.anees or 0.0))
+    except AneesError as exc:
+        return Aggregate(math.nan, Verdict.ERROR, math.nan, str(exc))
+    v = res.share(criterion.metric.split(".")[2])
+    verdict, margin = judge_value(criterion.limit, criterion.band(), v)
+    return Aggregate(v, verdict, margin, res.text(criterion.window.name), res.as_dict())

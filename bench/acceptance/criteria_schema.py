@@ -318,10 +318,12 @@ def _monte_carlo(t: Table | None, comparator: str) -> MonteCarlo:
     pct = t.number("percentile")
     conf = t.quantity("confidence", "dimensionless", "1")
     agg = t.str("aggregate", choices=AGGREGATES)
+    anees = t.quantity("anees", "dimensionless", "1")
     t.finish()
-    modes = [m for m, v in (("pass_runs", pass_runs), ("percentile", pct), ("aggregate", agg)) if v is not None]
+    modes = [m for m, v in (("pass_runs", pass_runs), ("percentile", pct), ("aggregate", agg), ("anees", anees))
+             if v is not None]
     if len(modes) > 1:
-        raise t.error(modes[1], f"expected one of pass_runs, percentile, aggregate; found {', '.join(modes)}")
+        raise t.error(modes[1], f"expected one of pass_runs, percentile, aggregate, anees; found {', '.join(modes)}")
     if pct is not None:
         if not 0.0 < pct < 100.0:
             raise t.error("percentile", f"expected a percentile between 0 and 100, found {pct:g}")
@@ -338,6 +340,11 @@ def _monte_carlo(t: Table | None, comparator: str) -> MonteCarlo:
         return _built(t, MonteCarlo, "pass_runs", pass_runs=pass_runs)
     if agg is not None:
         return _built(t, MonteCarlo, "aggregate", aggregate=agg)
+    if anees is not None:
+        if not 0.0 < anees < 1.0:
+            raise t.error("anees", f"expected the band's confidence, a probability between 0 and 1 (or %), found "
+                          f"{anees:g}")
+        return _built(t, MonteCarlo, "anees", anees=anees)
     return MonteCarlo()
 
 

@@ -35,6 +35,7 @@ from bench.acceptance.criteria import Aggregate, Criterion, RunValue, aggregate_
 from bench.acceptance.integrity_criteria import PREFIX, waivers
 from bench.acceptance.verdict import Verdict, worst
 from bench.errors import ConfigError, RecordingError
+from bench.scoring.consistency import GRID_NS
 from bench.scoring.data import DutDataError, NoDataError, RunData, load_run
 from bench.scoring.metrics import Scorer
 
@@ -186,8 +187,11 @@ def score_run(run: RunData, case: TestCase) -> RunResult:
 
 
 def _measure(scorer: Scorer, c: Criterion, seed: int, bench: list[str], dut: list[str]) -> RunValue:
+    options = c.options
+    if c.monte_carlo.mode == "anees":  # the NEES sampled on the grid, for the test over the runs
+        options = {**options, "nees_grid_ns": GRID_NS}
     try:
-        mv = scorer.metric(c.metric, c.window, c.options)
+        mv = scorer.metric(c.metric, c.window, options)
     except NoDataError as exc:
         if dut and not bench:
             return RunValue(seed, math.nan, Verdict.FAIL, f"{exc} (the DUT failed: {'; '.join(dut)})")
@@ -268,8 +272,10 @@ def _controls(c: Criterion, values: list[RunValue], runs: list[RunValue] | None 
             return Aggregate(agg.value, Verdict.FAIL, math.nan, f"the control could not be measured: {agg.reason}")
         verdict, reason = _inverted(c, agg.margin)
         if verdict is Verdict.FAIL:
-            reason = f"{reason} ({c.monte_carlo.text()})"
-        return Aggregate(agg.value, verdict, -agg.margin, reason)
+            reason = f"{reason} ({c.monte_carlo.text(len(values))})"
+        if agg.details:  # the ANEES mode: what it measured on the control
+            reason = f"{reason}; {agg.reason}"
+        return Aggregate(agg.value, verdict, -agg.margin, reason, agg.details)
     if runs is None:
         runs = [_control(c, rv) for rv in values]
     judged = [r for r in runs if r.verdict is not Verdict.NA]

@@ -31,7 +31,9 @@ __all__ = ["judge_groups", "run_result", "missing_criteria", "error_reasons"]
 
 def _value(c: Mapping[str, Any], seed: int) -> RunValue:
     v = c.get("value")
-    return RunValue(seed, math.nan if v is None else float(v), Verdict(c["verdict"]), c.get("reason") or "")
+    series = c.get("series")  # the sampled NEES of a criterion judged by ANEES over the runs
+    return RunValue(seed, math.nan if v is None else float(v), Verdict(c["verdict"]), c.get("reason") or "",
+                    dict(series) if isinstance(series, Mapping) else {})
 
 
 def run_result(rec: Mapping[str, Any]) -> RunResult:
@@ -130,8 +132,9 @@ def judge_groups(plan: Iterable[PlannedRun], records: Mapping[str, Mapping[str, 
             "criteria": [
                 {"id": c.criterion.id, "variant": c.variant, "control": c.control, "verdict": c.verdict.value,
                  "value": _num(c.criterion.display(c.aggregate.value)), "unit": c.criterion.unit,
-                 "limit": c.criterion.limit.text(c.criterion.unit), "monte_carlo": c.criterion.monte_carlo.text(),
-                 "reason": c.aggregate.reason}
+                 "limit": c.criterion.limit.text(c.criterion.unit),
+                 "monte_carlo": c.criterion.monte_carlo.text(len(c.runs)), "reason": c.aggregate.reason}
+                | ({"anees": c.aggregate.details} if c.aggregate.details else {})
                 for c in cr.criteria
             ],
         }

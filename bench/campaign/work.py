@@ -33,7 +33,8 @@ __all__ = [
     "RunBusyError", "RECORD_VERSION",
 ]
 
-RECORD_VERSION = 2
+#: 3: a criterion judged by ANEES over the runs keeps its run's sampled NEES (``series``)
+RECORD_VERSION = 3
 
 
 class RunInterruptedError(BenchError):
@@ -218,7 +219,7 @@ def execute_run(run: PlannedRun, out_dir: str) -> dict[str, Any]:
             bench_issues=list(result.bench_issues),
             dut_issues=list(result.dut_issues),
             criteria={cid: _criterion_record(v, crits.get(cid)) for cid, v in sorted(result.values.items())},
-            raw={cid: {"value": _number(v.value), "verdict": v.verdict.value, "reason": v.reason}
+            raw={cid: {"value": _number(v.value), "verdict": v.verdict.value, "reason": v.reason} | _series(v)
                  for cid, v in sorted(result.raw.items())},  # comparisons' and negative controls' values
         )
     record["complete"] = True
@@ -231,6 +232,19 @@ def _criterion_record(v: Any, crit: Any) -> dict[str, Any]:
     display unit (``display``) and :func:`criterion_fields`."""
     value = _number(v.value)
     out: dict[str, Any] = {"value": value, "verdict": v.verdict.value, "reason": v.reason, "worse": "higher"}
+    out.update(_series(v))
     if crit is not None:
         out.update(criterion_fields(crit), display=_display(crit, value))
     return out
+
+
+def _series(v: Any) -> dict[str, Any]:
+    """``{"series": {"dof", "nees_grid"}}`` of a run's value judged by ANEES over the runs
+    (its sampled NEES, :mod:`bench.acceptance.anees`; an infinite sample as ``"inf"``),
+    else nothing."""
+    d = v.details or {}
+    if "nees_grid" not in d:
+        return {}
+    grid = dict(d["nees_grid"])
+    grid["values"] = ["inf" if isinstance(x, float) and math.isinf(x) else x for x in grid.get("values", [])]
+    return {"series": {"dof": d.get("dof"), "nees_grid": grid}}  # JSON without Infinity

@@ -8,7 +8,9 @@ Per case group (case, variant, sweep point):
                       a range; ``±`` of a ``within``), the marginal band shaded inside it,
                       P50, P90 and P95 marked on the CDF;
 ``pass-rates``        the run pass rate and each criterion's, as bars with their
-                      Clopper-Pearson intervals.
+                      Clopper-Pearson intervals;
+``anees-<criterion>`` a criterion judged by ANEES over the runs: the ANEES against time
+                      with its band for N runs (:mod:`bench.report.campaign_anees`).
 
 Per swept key of a case (``sweeps``):
 
@@ -39,6 +41,7 @@ from typing import Any
 import numpy as np
 from matplotlib.axes import Axes
 
+from bench.report.campaign_anees import anees_entries, anees_figure
 from bench.report.figures import STYLE, Figure, fmt, margins, render, subplots
 
 __all__ = ["campaign_figures", "group_figures", "criterion_figure", "pass_rate_figure", "sweep_figures"]
@@ -311,8 +314,10 @@ def _sweep_pass_rate(label: str, k: int, axis: Mapping[str, Any], x: np.ndarray,
     return Figure(f"sweep-{k}-pass-rate", title, render(fig), alt, caption, values)
 
 
-def group_figures(label: str, case: Mapping[str, Any]) -> list[Figure]:
-    """The figures of one case group: its pass rates, then each criterion's distribution."""
+def group_figures(label: str, case: Mapping[str, Any], anees: Sequence[Mapping[str, Any]] = ()) -> list[Figure]:
+    """The figures of one case group: its pass rates, each criterion's distribution, then
+    the ANEES over time of each criterion judged by ANEES over the runs (``anees``: their
+    entries in ``campaign.json``'s verdicts, :mod:`bench.report.campaign_anees`)."""
     figs = [pass_rate_figure(label, case)]
     for cid, c in case.get("criteria", {}).items():
         disp = c.get("display") or {}
@@ -321,20 +326,31 @@ def group_figures(label: str, case: Mapping[str, Any]) -> list[Figure]:
         f = criterion_figure(label, cid, c)
         if f is not None:
             figs.append(f)
+    for entry in anees:
+        f = anees_figure(label, entry)
+        if f is not None:
+            figs.append(f)
     return figs
 
 
-def figure_jobs(aggregate: Mapping[str, Any]) -> list[tuple[str, Any, tuple[Any, ...]]]:
+def figure_jobs(aggregate: Mapping[str, Any], verdicts: Mapping[str, Any] | None = None
+                ) -> list[tuple[str, Any, tuple[Any, ...]]]:
     """``(key, function, arguments)`` of every figure group of the report, in its order:
-    each case group by its label, each sweep as ``sweep:<label>`` (picklable: for a pool)."""
+    each case group by its label (with the ANEES criteria ``verdicts`` judged on it), each
+    sweep as ``sweep:<label>`` (picklable: for a pool)."""
+    anees: dict[str, list[Mapping[str, Any]]] = {}
+    for group, entry in anees_entries(verdicts or {}):
+        anees.setdefault(group, []).append(entry)
     jobs: list[tuple[str, Any, tuple[Any, ...]]] = [
-        (label, group_figures, (label, case)) for label, case in aggregate.get("cases", {}).items()]
+        (label, group_figures, (label, case, tuple(anees.get(label, ()))))
+        for label, case in aggregate.get("cases", {}).items()]
     jobs += [(f"sweep:{label}", sweep_figures, (label, sweep))
              for label, sweep in (aggregate.get("sweeps") or {}).items()]
     return jobs
 
 
-def campaign_figures(aggregate: Mapping[str, Any]) -> dict[str, list[Figure]]:
+def campaign_figures(aggregate: Mapping[str, Any], verdicts: Mapping[str, Any] | None = None
+                     ) -> dict[str, list[Figure]]:
     """Every figure of the campaign report, per case group label and per sweep
     (``sweep:<label>``), in the aggregate's order."""
-    return {key: fn(*args) for key, fn, args in figure_jobs(aggregate)}
+    return {key: fn(*args) for key, fn, args in figure_jobs(aggregate, verdicts)}

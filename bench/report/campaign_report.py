@@ -136,7 +136,7 @@ def build_campaign_report(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     model = campaign_model(campaign, out, generated_utc=generated_utc)
-    jobs = figure_jobs(campaign.get("aggregate") or {})
+    jobs = figure_jobs(campaign.get("aggregate") or {}, campaign.get("verdicts") or {})
     n = max(1, min(workers or os.cpu_count() or 1, len(jobs) + 1))
     part_of = {g["label"]: g["label"] for g in model["groups"]} | {f"sweep:{s['label']}": "sweeps"
                                                                      for s in model["sweeps"]}

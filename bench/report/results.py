@@ -15,6 +15,8 @@ JSON Schema ``bench/report/schemas/results-1.json`` (published as
                               "paper", "variant", "relative_to", "control",
                               "must_fail_on", "monte_carlo",
                               "compare_tolerance", "compare_tolerance_relative",
+                              "anees" (the ANEES mode only: runs, dof, band, t_s,
+                              anees, ...),
                               "runs": [{"seed", "value", "verdict", "reason"}]}],
                 "runs": [{"recording", "variant", "seed", "verdict",
                           "bench_issues", "dut_issues", "notes", "timing", "criteria",
@@ -127,14 +129,14 @@ def criterion_json(cr: CriterionResult) -> dict[str, Any]:
         "relative_to": c.relative_to,
         "control": cr.control,
         "must_fail_on": list(c.must_fail_on),
-        "monte_carlo": c.monte_carlo.text(),
+        "monte_carlo": c.monte_carlo.text(len(cr.runs)),
         "compare_tolerance": None if c.compare_tolerance is None else num(c.display(c.compare_tolerance)),
         "compare_tolerance_relative": num(c.compare_tolerance_relative),
         "runs": [
             {"seed": r.seed, "value": num(c.display(r.value)), "verdict": str(r.verdict), "reason": r.reason}
             for r in cr.runs
         ],
-    }
+    } | ({"anees": _clean(a.details)} if a.details else {})
 
 
 def run_json(r: RunResult) -> dict[str, Any]:

@@ -18,6 +18,12 @@ Statistics over a window:
 * ``below`` -- fraction below its lower bound (the DUT is pessimistic).
 
 A zero sigma with a non-zero error is an infinite NEES (counted above the bound).
+
+For a criterion judged over the Monte Carlo runs (``monte_carlo = { anees = ... }``,
+:mod:`bench.acceptance.anees`) the details also carry ``nees_grid``: the NEES per degree of
+freedom *sampled* on a fixed grid of bench time (:func:`nees_grid`, 1 s), the epoch at or
+just after each grid time inside the window -- sampled, not averaged, so that each sample
+keeps its chi-square law; the grid is the same in every run, so the runs line up.
 """
 
 from __future__ import annotations
@@ -32,11 +38,16 @@ from bench.scoring.align import NavErrors
 from bench.scoring.data import NoDataError
 from bench.scoring.windows import Window
 
-__all__ = ["CONSISTENCY_QUANTITIES", "CONSISTENCY_STATS", "nees_series", "consistency_value", "chi2_bounds"]
+__all__ = [
+    "CONSISTENCY_QUANTITIES", "CONSISTENCY_STATS", "nees_series", "nees_grid", "consistency_value", "chi2_bounds",
+    "GRID_NS",
+]
 
 #: quantity -> degrees of freedom
 CONSISTENCY_QUANTITIES = {"position": 3, "velocity": 3, "heading": 1}
 CONSISTENCY_STATS = ("nees", "within", "above", "below")
+#: The grid of the sampled NEES series (bench time), ns.
+GRID_NS = 1_000_000_000
 
 
 def chi2_bounds(dof: int, confidence: float) -> tuple[float, float]:
@@ -70,6 +81,32 @@ def nees_series(errors: NavErrors, quality: np.ndarray | None, quantity: str) ->
     return match, np.where(match, nees, np.nan)
 
 
+def _sig(x: float) -> float:
+    """``x`` to 6 significant digits (what a record keeps of a sample; inf stays inf)."""
+    return float(f"{x:.6g}") if np.isfinite(x) else float(x)
+
+
+def nees_grid(t_ns: np.ndarray, nees_per_dof: np.ndarray, step_ns: int = GRID_NS) -> dict[str, Any]:
+    """The NEES per degree of freedom of the selected epochs ``t_ns`` (sorted) sampled on
+    the grid ``k * step_ns`` of bench time: at each grid time from the first epoch's to
+    the last's, the first epoch in ``[t_k, t_k + step)``, or None where the window has
+    none (a gap, an epoch outside the window). ``{"start_s", "step_s", "values"}``: the
+    grid time of ``values[0]`` and the step, s; an infinite sample (a zero sigma) stays
+    infinite."""
+    if len(t_ns) == 0:
+        return {"start_s": 0.0, "step_s": step_ns * 1e-9, "values": []}
+    k0 = -(-int(t_ns[0]) // step_ns)  # ceil: the first grid time at or after the first epoch
+    k1 = int(t_ns[-1]) // step_ns
+    grid = np.arange(k0, k1 + 1, dtype=np.int64) * step_ns
+    j = np.searchsorted(t_ns, grid, side="left")
+    ok = j < len(t_ns)
+    ok[ok] &= t_ns[j[ok]] < grid[ok] + step_ns
+    values: list[float | None] = [None] * len(grid)
+    for i in np.flatnonzero(ok):
+        values[i] = _sig(float(nees_per_dof[j[i]]))
+    return {"start_s": k0 * step_ns * 1e-9, "step_s": step_ns * 1e-9, "values": values}
+
+
 def consistency_value(
     quantity: str,
     stat: str,
@@ -77,8 +114,10 @@ def consistency_value(
     quality: np.ndarray | None,
     window: Window,
     confidence: float,
+    grid_ns: int | None = None,
 ) -> tuple[float, dict[str, Any]]:
-    """Value of ``consistency.<quantity>.<stat>`` over ``window``."""
+    """Value of ``consistency.<quantity>.<stat>`` over ``window``; with ``grid_ns`` the
+    details carry the sampled series ``nees_grid`` (:func:`nees_grid`)."""
     idx = select(errors, window)
     match, nees = nees_series(errors, quality, quantity)
     idx = idx[match[idx]]
@@ -87,7 +126,9 @@ def consistency_value(
     v = nees[idx]
     dof = CONSISTENCY_QUANTITIES[quantity]
     lo, hi = chi2_bounds(dof, confidence)
-    details = {"epochs": len(idx), "dof": dof, "confidence": confidence, "lower": lo, "upper": hi}
+    details: dict[str, Any] = {"epochs": len(idx), "dof": dof, "confidence": confidence, "lower": lo, "upper": hi}
+    if grid_ns is not None:
+        details["nees_grid"] = nees_grid(errors.t_ns[idx], v / dof, grid_ns)
     if stat == "nees":
         return float(np.mean(v)) / dof, details
     if stat == "within":

@@ -7,7 +7,9 @@ criterion's limits), a display unit and the options a criterion may pass to it:
 * ``faults.<aggregate>`` -- :mod:`bench.scoring.faults` (options ``target``, ``flag``,
   ``layer``);
 * ``frameswitch.<aggregate>`` -- :mod:`bench.scoring.frameswitch` (option ``to``);
-* ``consistency.<quantity>.<stat>`` -- :mod:`bench.scoring.consistency`;
+* ``consistency.<quantity>.<stat>`` -- :mod:`bench.scoring.consistency` (the bench's own
+  option ``nees_grid_ns``, set for a criterion judged by ANEES over the runs: the details
+  carry the NEES sampled on that grid);
 * ``output.<name>`` -- :mod:`bench.scoring.output` (the integrity measures in
   :mod:`bench.scoring.epochs`);
 * ``map.<name>`` -- :mod:`bench.scoring.mapscore` (the case's ``[scoring.map]`` road
@@ -247,7 +249,8 @@ class Scorer:
             return MetricValue(v, det)
         if ms.family == "consistency":
             v, det = consistency_value(
-                parts[1], parts[2], self.errors, self.run.quality, window, self.settings.confidence
+                parts[1], parts[2], self.errors, self.run.quality, window, self.settings.confidence,
+                options.get("nees_grid_ns"),
             )
             return MetricValue(v, det)
         if ms.family == "output":

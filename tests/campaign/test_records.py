@@ -39,14 +39,14 @@ def test_a_record_is_small_and_complete(tmp_path):
     assert pos["display"] == pytest.approx(pos["value"])  # metres: display unit = SI
     invalid = rec["criteria"]["INTEGRITY-missing"]  # a fraction shown in %
     assert invalid["unit"] == "%" and invalid["limit"]["high"] == pytest.approx(0.1)
-    assert rec["version"] == RECORD_VERSION == 2 and rec["sweep_axes"] is None
+    assert rec["version"] == RECORD_VERSION == 3 and rec["sweep_axes"] is None
     assert not list((out / "runs").glob("*.tmp"))
     record_path(out, run.key).write_text(json.dumps({**rec, "complete": False}))
     assert load_record(out, run.key) is None  # an incomplete record runs again
-    record_path(out, run.key).write_text(json.dumps({**rec, "version": 1}))
+    record_path(out, run.key).write_text(json.dumps({**rec, "version": 2}))
     assert load_record(out, run.key) is None  # a record of another version runs again
     result = run_campaign(CampaignOptions([str(tmp_path / "case.toml")], out, runs=1, workers=1))
-    assert result["invocation"]["executed"] == 1 and load_record(out, run.key)["version"] == 2
+    assert result["invocation"]["executed"] == 1 and load_record(out, run.key)["version"] == 3
 
 
 def test_an_interrupted_run_writes_no_record_and_the_campaign_is_incomplete(tmp_path):

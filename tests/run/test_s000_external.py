@@ -68,7 +68,7 @@ def test_s000_external_runs_end_to_end_over_pty_and_udp_multicast(runs):
     sol = nav(rec)["/dut/nav_solution"]
     assert len(sol) == EPOCHS and np.all(np.diff(sol["t_ns"]) == 10_000_000)
     verdicts = criteria(results)
-    assert len(verdicts) == 19, verdicts  # the case's 9 and the 10 integrity defaults
+    assert len(verdicts) == 21, verdicts  # the case's 11 and the 10 integrity defaults
     for cid, (verdict, _) in verdicts.items():
         assert verdict in ("PASS", "MARGINAL", "FAIL"), (cid, verdict, text)  # judged on its data
         if cid.startswith(("OUT-", "INTEGRITY-")):
