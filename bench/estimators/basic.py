@@ -44,6 +44,16 @@ def _output_period(config: Mapping[str, Any]) -> int:
     return period_ns(1.0 / rate, "dut.config.output_rate")
 
 
+def _first_grid(inputs: DutInputs, period_ns: int) -> int:
+    """The first output time of a DUT at its first step: the first grid time from the
+    step's time or its first IMU frame's, whichever is earlier (a replay from a seek gets no
+    epochs from before it)."""
+    t = inputs.t_ns
+    if len(inputs.imu):
+        t = min(t, int(inputs.imu["t_ns"][0]))
+    return -(-t // period_ns) * period_ns
+
+
 class DecodeOnly(Estimator):
     """Reads everything, navigates nothing (see the module docstring)."""
 
@@ -60,7 +70,7 @@ class DecodeOnly(Estimator):
     def step(self, inputs: DutInputs) -> EstimatorOutput:
         self.received += inputs.count()
         if self.next_ns is None:
-            self.next_ns = -(-inputs.t_ns // self.period_ns) * self.period_ns
+            self.next_ns = _first_grid(inputs, self.period_ns)
         if inputs.t_ns < self.next_ns:
             return EstimatorOutput()
         if inputs.t_ns < self.next_ns + self.period_ns:  # one epoch (the usual step): no arrays to build
@@ -143,7 +153,7 @@ class DeadReckoning(Estimator):
             self._sum_dv += imu["dvel"].sum(axis=0)
             self._sum_t += float((imu["t_ns"][-1] - self._last_imu_ns) * 1e-9)
             self._last_imu_ns = int(imu["t_ns"][-1])
-        out = self._aligning_epochs(inputs.t_ns)
+        out = self._aligning_epochs(inputs)
         if self._last_imu_ns >= self.alignment_ns and self._sum_t > 0:
             lat, lon, h = self.position
             C = coarse_align(self._sum_dv / self._sum_t, self._sum_th / self._sum_t, lat)
@@ -151,9 +161,10 @@ class DeadReckoning(Estimator):
             self._state = np.array([lat, lon, h, *q, 0.0, 0.0, 0.0, 0.0, 0.0])
         return out
 
-    def _aligning_epochs(self, t_ns: int) -> EstimatorOutput:
+    def _aligning_epochs(self, inputs: DutInputs) -> EstimatorOutput:
+        t_ns = inputs.t_ns
         if self._next_out is None:
-            self._next_out = -(-t_ns // self.period_ns) * self.period_ns
+            self._next_out = _first_grid(inputs, self.period_ns)
         if t_ns < self._next_out or self.position is None:
             return EstimatorOutput()
         times = np.arange(self._next_out, t_ns + 1, self.period_ns, dtype=np.int64)

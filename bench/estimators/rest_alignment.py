@@ -33,11 +33,14 @@ class RestAlignment:
         self.sum_dv = np.zeros(3)
         self._gaps: list[np.ndarray] = []
         self.last_ns = 0
-        self.next_out_ns: int | None = None  # set by the first step: no epoch before it (a replay's seek)
+        self.next_out_ns: int | None = None  # set by the first step: no epoch before its data (a replay's seek)
+        self.first_ns: int | None = None  # the first IMU frame's time
 
     def add(self, imu: np.ndarray) -> None:
         """Sum one step's increments (IMU_SAMPLE_DTYPE rows)."""
         if len(imu):
+            if self.first_ns is None:
+                self.first_ns = int(imu["t_ns"][0])
             if len(imu) > 1:
                 self._gaps.append(np.diff(imu["t_ns"]))
             self.sum_th += imu["dtheta"].sum(axis=0)
@@ -51,10 +54,11 @@ class RestAlignment:
     def epochs(self, t_ns: int, out_ns: int, position: tuple[float, float, float] | None,
                position_sigma: float) -> EstimatorOutput:
         """The "aligning" (not valid) epochs on the ``out_ns`` grid up to ``t_ns``, from the
-        first step's time on (a run that starts later than bench time 0, a replay from a
-        seek, gets no epochs from before it: a DUT never answers for a time it did not see)."""
+        first step's time or its first IMU frame's, whichever is earlier, on (a run that
+        starts later than bench time 0, a replay from a seek, gets no epochs from before it:
+        a DUT never answers for a time it saw nothing of)."""
         if self.next_out_ns is None:
-            self.next_out_ns = t_ns
+            self.next_out_ns = min(t_ns, self.first_ns) if self.first_ns is not None else t_ns
         if t_ns < self.next_out_ns or position is None:
             return EstimatorOutput()
         first = -(-self.next_out_ns // out_ns) * out_ns

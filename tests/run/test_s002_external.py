@@ -101,7 +101,7 @@ def test_s002_external_runs_end_to_end_over_pty_and_udp_multicast(runs):
     assert len(sol) == EPOCHS and np.all(np.diff(sol["t_ns"]) == 10_000_000)
     assert sol["mode"][-1] != sol["mode"][0]  # aligned, then navigating with the odometer
     verdicts = criteria(results)
-    assert len(verdicts) == 18, verdicts  # the case's 8 and the 10 integrity defaults
+    assert len(verdicts) == 19, verdicts  # the case's 9 and the 10 integrity defaults
     for cid, (verdict, _) in verdicts.items():
         assert verdict in ("PASS", "MARGINAL", "FAIL"), (cid, verdict, text)  # judged on its data
         if cid.startswith(("OUT-", "INTEGRITY-")):

@@ -115,7 +115,7 @@ def test_s003_external_runs_end_to_end_over_two_ptys_and_udp_multicast(runs):
     assert sol["mode"][-1] != sol["mode"][0]  # aligned, then navigating with the aids
     verdicts = criteria(results)
     n_case = len(tomllib.loads(EXTERNAL.read_text())["criterion"])
-    assert n_case == 15 and len(verdicts) == n_case + 10, verdicts  # the case's and the 10 integrity defaults
+    assert n_case == 21 and len(verdicts) == n_case + 10, verdicts  # the case's and the 10 integrity defaults
     for cid, (verdict, _) in verdicts.items():
         assert verdict in ("PASS", "MARGINAL", "FAIL"), (cid, verdict, text)  # judged on its data
     assert verdicts["OUT-MISSING"][0] == "PASS", text
