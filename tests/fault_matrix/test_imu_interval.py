@@ -1,0 +1,178 @@
+"""The fault matrix (issue 33, item 2): the IMU interval is never assumed (what every row
+checks: tests/fault_matrix/test_inputs.py).
+
+Before issue 33 an IMU log encoded at its native 100 Hz and replayed with the default
+10 ms step made all four reference estimators take 5 ms as the IMU interval (no step held
+two frames, so the shared rest alignment could not measure it and fell back to 5 ms):
+each frame was integrated as 5 ms, the filter estimated a 1 g accelerometer bias and
+drifted, and the run ended ``complete``, exit 0. Nothing warned.
+
+Each row is a real run: a parked vehicle synthesised by ``bench synth`` at the IMU rate
+of the row, its IMU samples encoded to the ICD byte stream (the log a user brings), then
+``bench replay --imu-log`` into an estimator, and the solution judged against the truth
+(parked at the surveyed point): position held, velocity zero, level attitude.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bench.record.mcap_io import RecordingReader
+from bench.wire.imu import encode_frames
+from tests.fault_matrix.matrix import bench
+
+LAT, LON, H = 34.246, 108.909, 380.0
+HEADING = 30.0
+PARKED = f"""
+[scenario]
+id = "REST"
+title = "parked"
+start_utc = "2026-03-01T08:00:00Z"
+
+[initial]
+latitude = {LAT}
+longitude = {LON}
+height = "{H} m"
+heading = "{HEADING} deg"
+
+[imu]
+grade = "navigation"
+rate = "{{rate}}"
+
+[[segment]]
+kind = "static"
+duration = "{{duration}}"
+"""
+CONFIG = f"""
+initial_position = [{LAT}, {LON}, {H}]
+coarse_alignment = "10 s"
+alignment = "40 s"
+"""
+NAV_FROM_S = 45.0  # the fine alignment ends at 40 s
+
+
+def _synth(folder: Path, rate: str, duration: str) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "parked.toml").write_text(PARKED.format(rate=rate, duration=duration))
+    out = folder / "synth.mcap"
+    bench("synth", str(folder / "parked.toml"), "-o", str(out), "-q", cwd=folder, expect=0)
+    return out
+
+
+def _samples(rec: Path) -> np.ndarray:
+    return RecordingReader(rec).read_columnar("/imu")
+
+
+def _encode(imu: np.ndarray, path: Path) -> Path:
+    """The samples as the ICD byte stream of the imu line (a logger's file)."""
+    frames = encode_frames(imu["t_ns"], imu["dtheta"], imu["dvel"], imu["status"], imu["temperature"],
+                           np.arange(len(imu)) % 256)
+    path.write_bytes(frames.tobytes())
+    return path
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory) -> Path:
+    d = tmp_path_factory.mktemp("imu_interval")
+    (d / "cfg.toml").write_text(CONFIG)
+    (d / "empty_faults.toml").write_text("fault = []  # no faults: re-encode the samples\n")
+    return d
+
+
+@pytest.fixture(scope="module")
+def log100(folder) -> Path:
+    """90 s parked, 100 Hz, as an ICD IMU byte log."""
+    return _encode(_samples(_synth(folder / "s100", "100 Hz", "90 s")), folder / "imu100.bin")
+
+
+def _solution(rec: Path) -> np.ndarray:
+    return RecordingReader(rec).read_columnar("/dut/nav_solution")
+
+
+def _assert_parked(rec: Path, until_s: float) -> None:
+    """After the alignment the solution holds the surveyed point at rest, level (the
+    navigation grade's accelerometer biases tilt it by hundredths of a degree)."""
+    s = _solution(rec)
+    t = s["t_ns"] * 1e-9
+    nav = s[t >= NAV_FROM_S]
+    assert len(nav) and t[-1] >= until_s - 0.1, f"the solution ends at {t[-1]:.2f} s"
+    assert np.all(nav["valid"] == 1)
+    r = 6.378e6
+    north = (nav["lat"] - math.radians(LAT)) * r
+    east = (nav["lon"] - math.radians(LON)) * r * math.cos(math.radians(LAT))
+    horiz = float(np.max(np.hypot(north, east)))
+    vert = float(np.max(np.abs(nav["h"] - H)))
+    speed = float(np.max(np.linalg.norm(nav["vel_n"], axis=1)))
+    tilt = float(np.degrees(np.max(np.abs(np.concatenate([nav["pitch"], nav["roll"]])))))
+    hdg = float(np.degrees(np.max(np.abs(np.angle(np.exp(1j * (nav["heading"] - math.radians(HEADING))))))))
+    figures = f"horizontal {horiz:.3f} m, vertical {vert:.3f} m, speed {speed:.4f} m/s, tilt {tilt:.4f} deg, " \
+              f"heading error {hdg:.3f} deg"
+    assert horiz < 0.5 and vert < 0.5 and speed < 0.02, figures
+    assert tilt < 0.05 and hdg < 0.5, figures
+
+
+# ------------------------------------------------------------------ Why: 100 Hz at 10 ms steps
+@pytest.mark.parametrize("estimator", ["seed000", "seed001", "seed002", "seed003"])
+def test_a_100_hz_log_at_the_default_10_ms_step_aligns_and_holds_the_parked_vehicle(folder, log100, estimator):
+    out = folder / f"why_{estimator}.mcap"
+    bench("replay", "--imu-log", str(log100), "--estimator", estimator, "--dut-config", str(folder / "cfg.toml"),
+          "-o", str(out), "-q", "--force", cwd=folder, expect=0)
+    _assert_parked(out, 90.0)
+
+
+# ------------------------------------------------------------------ the declared rate
+def test_a_log_at_another_rate_than_declared_is_refused_before_the_run_naming_both(folder, log100):
+    out = folder / "refused.mcap"
+    r = bench("replay", "--imu-log", str(log100), "--estimator", "seed000", "--dut-config",
+              str(folder / "cfg.toml"), "--imu-rate", "200 Hz", "-o", str(out), "-q", cwd=folder, expect=2)
+    assert "--imu-rate" in r.err and "100 Hz" in r.err and "200 Hz" in r.err and "imu100.bin" in r.err, r.err
+    assert not out.exists()
+    # the reference case declares 200 Hz: a 100 Hz log replayed into it is refused, the case named
+    case = Path(__file__).parents[2] / "test_cases" / "S000_sins_doppler.toml"
+    r = bench("replay", "--imu-log", str(log100), "--case", str(case), "-o", str(out), "-q", cwd=folder, expect=2)
+    assert "S000_sins_doppler.toml" in r.err and "sensors.imu.rate" in r.err, r.err
+    assert "100 Hz" in r.err and "200 Hz" in r.err, r.err
+    assert not out.exists()
+    # declared right: it runs
+    bench("replay", "--imu-log", str(log100), "--estimator", "seed000", "--dut-config", str(folder / "cfg.toml"),
+          "--imu-rate", "100 Hz", "-o", str(out), "-q", cwd=folder, expect=0)
+
+
+def test_a_recording_replayed_into_a_case_of_another_rate_is_refused(folder):
+    rec = _synth(folder / "s100r", "100 Hz", "20 s")
+    case = Path(__file__).parents[2] / "test_cases" / "S000_sins_doppler.toml"
+    out = folder / "refused_rec.mcap"
+    r = bench("replay", str(rec), "--faults", str(folder / "empty_faults.toml"), "--case", str(case), "-o", str(out),
+              "-q", cwd=folder, expect=2)
+    assert "S000_sins_doppler.toml" in r.err and "100 Hz" in r.err and "200 Hz" in r.err, r.err
+    assert not out.exists()
+
+
+# ------------------------------------------------------------------ 1 kHz at 1 s steps
+def test_a_1_khz_recording_at_1_s_steps_aligns_and_holds(folder):
+    rec = _synth(folder / "s1k", "1000 Hz", "60 s")
+    out = folder / "r1k.mcap"
+    bench("replay", str(rec), "--faults", str(folder / "empty_faults.toml"), "--estimator", "seed000",
+          "--dut-config", str(folder / "cfg.toml"), "--step", "1000", "-o", str(out), "-q", "--force",
+          cwd=folder, expect=0)
+    _assert_parked(out, 60.0)
+
+
+# ------------------------------------------------------------------ a rate change mid-log
+def test_a_log_whose_rate_changes_mid_log_is_refused_naming_the_time_and_both_rates(folder, log100):
+    imu = _samples(folder / "s100" / "synth.mcap")
+    half = len(imu) // 2
+    slow = imu[half:][1::2].copy()  # 50 Hz from the middle on: pairs of 10 ms frames summed into 20 ms ones
+    slow["dtheta"] += imu[half:][0::2]["dtheta"][: len(slow)]
+    slow["dvel"] += imu[half:][0::2]["dvel"][: len(slow)]
+    log = _encode(np.concatenate([imu[:half], slow]), folder / "imu_100_then_50.bin")
+    out = folder / "change.mcap"
+    r = bench("replay", "--imu-log", str(log), "--estimator", "seed000", "--dut-config", str(folder / "cfg.toml"),
+              "-o", str(out), "-q", cwd=folder, expect=2)
+    assert "imu_100_then_50.bin" in r.err and "changes rate" in r.err, r.err
+    assert "100 Hz" in r.err and "50 Hz" in r.err and "45" in r.err, r.err
+    assert not out.exists()
