@@ -176,3 +176,54 @@ def test_a_log_whose_rate_changes_mid_log_is_refused_naming_the_time_and_both_ra
     assert "imu_100_then_50.bin" in r.err and "changes rate" in r.err, r.err
     assert "100 Hz" in r.err and "50 Hz" in r.err and "45" in r.err, r.err
     assert not out.exists()
+
+
+# ------------------------------------------------------------------ the real laser-gyro log
+PSINS = Path(__file__).parents[1] / "data" / "psins_lasergyro_10min.imu"
+
+
+def _psins_to_icd(path: Path, out: Path) -> tuple[float, float, float, float]:
+    """The PSINS SIMU text log (tests/data/README.md: 0.1 arcsec and 125 ug*s counts, RFU,
+    the interval and g in its second parameter line) as the ICD byte stream at its own
+    100 Hz; returns (lat, lon, h) and the level attitude (pitch, roll, deg) of the whole
+    log's mean specific force, an independent levelling (numpy only)."""
+    a = np.loadtxt(path, comments="%")
+    pos, sf, data = a[1], a[2], a[3:]
+    dt, g = pos[4] * 1e-3, pos[5]
+    n = len(data)
+    t = np.round(np.arange(1, n + 1) * dt * 1e9).astype(np.int64)
+    dth = data[:, :3] * sf[:3] * math.radians(1 / 3600)
+    dv = data[:, 3:] * sf[3:] * 1e-6 * g
+    frames = encode_frames(t, dth, dv, np.zeros(n, np.int64), np.full(n, 25.0), np.arange(n) % 256)
+    out.write_bytes(frames.tobytes())
+    f = dv.sum(axis=0)
+    return (float(pos[0]), float(pos[1]), float(pos[2]), math.degrees(math.atan2(f[1], math.hypot(f[0], f[2]))),
+            math.degrees(math.atan2(-f[0], f[2])))
+
+
+def test_the_real_100_hz_laser_gyro_log_at_the_default_step_aligns_and_holds(folder):
+    """The issue's own log (10 min of it): before, 5 ms taken for its 10 ms interval and a
+    drift of kilometres; now the heading of the log's header (PSINS yaw -90.6 deg, counted
+    to the west: 90.6 deg), the levelling of its mean specific force, the point held."""
+    lat, lon, h, pitch, roll = _psins_to_icd(PSINS, folder / "psins.bin")
+    (folder / "psins.toml").write_text(f"initial_position = [{lat}, {lon}, {h}]\n")
+    out = folder / "psins.mcap"
+    bench("replay", "--imu-log", str(folder / "psins.bin"), "--estimator", "seed000",
+          "--dut-config", str(folder / "psins.toml"), "-o", str(out), "-q", "--force", cwd=folder, expect=0)
+    s = _solution(out)
+    t = s["t_ns"] * 1e-9
+    assert t[-1] >= 599.9
+    nav = s[t >= 305.0]  # the seed000 default alignment is 300 s
+    r = 6.378e6
+    north = (nav["lat"] - math.radians(lat)) * r
+    east = (nav["lon"] - math.radians(lon)) * r * math.cos(math.radians(lat))
+    horiz = float(np.max(np.hypot(north, east)))
+    speed = float(np.max(np.linalg.norm(nav["vel_n"], axis=1)))
+    hdg = np.degrees(nav["heading"])
+    dp = float(np.max(np.abs(np.degrees(nav["pitch"]) - pitch)))
+    dr = float(np.max(np.abs(np.degrees(nav["roll"]) - roll)))
+    figures = (f"horizontal {horiz:.2f} m, speed {speed:.4f} m/s, heading {hdg.min():.3f}..{hdg.max():.3f} deg, "
+               f"pitch off {dp * 60:.1f}', roll off {dr * 60:.1f}'")
+    assert horiz < 20.0 and speed < 0.1, figures
+    assert np.all(np.abs(hdg - 90.6) < 0.5), figures
+    assert dp < 0.25 and dr < 0.25, figures  # a rocking vehicle: the filter's level follows it
