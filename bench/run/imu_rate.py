@@ -7,8 +7,10 @@ and is judged, as if it were right: the bench refuses it instead (exit 2, both r
 named). The rules (docs/run_engine.md, "The IMU rate of a replay"):
 
 * The measured interval is the median of the gaps between consecutive frames' times of
-  validity (gaps of zero or less, a repeated or out-of-order frame, do not count). Lost
-  frames and jitter move the median only when they are the rule.
+  validity (gaps of zero or less, a repeated or out-of-order frame, do not count), then
+  the median again of the gaps up to 1.5 times the first (a lost frame's longer gap left
+  out, as the estimators count it: docs/estimators.md). Lost frames and jitter move it
+  only when they are the rule.
 * The measured interval must lie within :data:`RATE_TOLERANCE` (2 %) of the declared one:
   an IMU's clock is off by a few hundred ppm at most, while the rates the ICD carries
   (1..1000 Hz) that a log is mistaken for differ by far more.
@@ -107,7 +109,8 @@ def measure_stream(stream: SerialBatch | np.ndarray | None, *, source: str) -> I
     gaps, at = gaps[keep], t[1:][keep]
     if not len(gaps):
         return None
-    rate = ImuRate(float(np.median(gaps)), len(t), source)
+    first = np.median(gaps)
+    rate = ImuRate(float(np.median(gaps[gaps <= 1.5 * first])), len(t), source)  # lost frames' gaps left out
     n = len(gaps) // BLOCK_GAPS
     if n >= 2:
         med = np.median(gaps[: n * BLOCK_GAPS].reshape(n, BLOCK_GAPS), axis=1)
