@@ -110,3 +110,16 @@ def test_a_rate_change_is_refused_but_lost_frames_and_jitter_are_not():
     # a change inside a block is found at that block (within BLOCK_GAPS frames)
     at = float(msg.split("from bench time ")[1].split(" s")[0])
     assert abs(at - t[10000] * 1e-9) <= BLOCK_GAPS * 0.005 + 1e-9
+
+
+def test_seed001_keeps_2_s_of_ins_history_at_1_khz():
+    """The history a delayed BDS fix is placed in: 400 states are 2 s at 200 Hz, 0.4 s at
+    1 kHz; it is sized by the measured interval."""
+    est = create_estimator("seed001", {"initial_position": [30.0, 110.0, 50.0], "coarse_alignment": "2 s"})
+    imu = _frames(np.arange(1, 3001) * 1_000_000)
+    imu["dvel"][:, 2] = 9.79e-3  # at rest, level, heading north: gravity and the Earth's rate
+    imu["dtheta"][:, 1] = 7.292115e-5 * math.cos(math.radians(30.0)) * 1e-3
+    imu["dtheta"][:, 2] = 7.292115e-5 * math.sin(math.radians(30.0)) * 1e-3
+    for t, part in _steps(imu, 1_000_000_000):
+        est.step(DutInputs(t, part, np.zeros(0), {}))
+    assert est.hist.shape[0] >= 2001
