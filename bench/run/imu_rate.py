@@ -7,7 +7,9 @@ and is judged, as if it were right: the bench refuses it instead (exit 2, both r
 named). The rules (docs/run_engine.md, "The IMU rate of a replay"):
 
 * The measured interval is the median of the gaps between consecutive frames' times of
-  validity (gaps of zero or less, a repeated or out-of-order frame, do not count), then
+  validity, each divided by the frames it spans by the frames' counters when the stream
+  is ICD bytes (frames lost on the wire skip counter values; gaps of zero or less, a
+  repeated or out-of-order frame, do not count), then
   the median again of the gaps up to 1.5 times the first (a lost frame's longer gap left
   out, as the estimators count it: docs/estimators.md). Lost frames and jitter move it
   only when they are the rule.
@@ -76,14 +78,14 @@ class ImuRate:
         return f"{self.rate_hz:.6g} Hz (median interval {self.interval_ns / 1e6:.6g} ms over {self.frames} frames)"
 
 
-def frame_times(batch: SerialBatch) -> np.ndarray:
-    """The times of validity (ns) of the ICD IMU frames in a serial batch's bytes, in the
-    order they go out (the stream decoder's resynchronisation rule)."""
+def frame_times(batch: SerialBatch) -> tuple[np.ndarray, np.ndarray]:
+    """The times of validity (ns) and the counters of the ICD IMU frames in a serial
+    batch's bytes, in the order they go out (the stream decoder's resynchronisation rule)."""
     starts, _ = accept_frames(batch.buf)
     if not starts.size:
-        return np.zeros(0, np.int64)
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
     rec = batch.buf[starts[:, None] + _OFFS].view(FRAME_DTYPE).reshape(-1)
-    return rec["time_us"].astype(np.int64) * 1000
+    return rec["time_us"].astype(np.int64) * 1000, rec["counter"].astype(np.int64)
 
 
 def measure_stream(stream: SerialBatch | np.ndarray | None, *, source: str) -> ImuRate | None:
@@ -98,13 +100,18 @@ def measure_stream(stream: SerialBatch | np.ndarray | None, *, source: str) -> I
     """
     if stream is None:
         return None
+    counter = None
     if isinstance(stream, SerialBatch):
-        t = frame_times(stream)
+        t, counter = frame_times(stream)
     elif stream.dtype.names and "t_ns" in stream.dtype.names:
         t = np.asarray(stream["t_ns"], np.int64)
     else:
         t = np.asarray(stream, np.int64)
-    gaps = np.diff(t)
+    gaps = np.diff(t).astype(np.float64)
+    if counter is not None and len(counter) > 1:
+        # frames lost on the wire skip counter values: a gap over k counts is k intervals
+        # (a repeated counter, a duplicate frame, counts as one)
+        gaps /= np.maximum((np.diff(counter) % 256), 1)
     keep = gaps > 0
     gaps, at = gaps[keep], t[1:][keep]
     if not len(gaps):

@@ -123,3 +123,23 @@ def test_seed001_keeps_2_s_of_ins_history_at_1_khz():
     for t, part in _steps(imu, 1_000_000_000):
         est.step(DutInputs(t, part, np.zeros(0), {}))
     assert est.hist.shape[0] >= 2000
+
+
+def test_frames_lost_on_the_wire_are_no_rate_change_when_the_counters_say_so():
+    """60 % of the frames of a stretch dropped on the wire: the counters skip, the rate holds;
+    the same stream re-counted (a logger at half the rate) is a rate change."""
+    n = 6000
+    t = np.arange(1, n + 1) * 5_000_000
+    counter = np.arange(n) % 256
+    rng = np.random.default_rng(1)
+    lost = np.zeros(n, bool)
+    lost[2000:4000] = rng.random(2000) < 0.6
+    keep = ~lost
+    frames = encode_frames(t[keep], np.zeros((keep.sum(), 3)), np.zeros((keep.sum(), 3)), 0, 25.0, counter[keep])
+    rate = measure_stream(SerialBatch.from_fixed(t[keep], frames), source="imu.bin")
+    assert rate is not None and rate.rate_hz == pytest.approx(200.0)
+    half = np.concatenate([t[:2000], t[2000::2]])
+    frames = encode_frames(half, np.zeros((len(half), 3)), np.zeros((len(half), 3)), 0, 25.0,
+                           np.arange(len(half)) % 256)
+    with pytest.raises(ConfigError, match="changes rate"):
+        measure_stream(SerialBatch.from_fixed(half, frames), source="imu.bin")
