@@ -227,3 +227,54 @@ def test_the_real_100_hz_laser_gyro_log_at_the_default_step_aligns_and_holds(fol
     assert horiz < 20.0 and speed < 0.1, figures
     assert np.all(np.abs(hdg - 90.6) < 0.5), figures
     assert dp < 0.25 and dr < 0.25, figures  # a rocking vehicle: the filter's level follows it
+
+
+# ------------------------------------------------------------------ a synthetic case at 100 Hz
+CASE_100 = f"""
+[case]
+id = "IMU100"
+title = "parked, 100 Hz IMU, the default 10 ms step"
+requirements = ["R"]
+
+[scenario]
+script = "parked.toml"
+
+[sensors]
+imu = {{ grade = "navigation", rate = "100 Hz" }}
+
+[dut]
+kind = "in_process"
+name = "seed000"
+config = {{ initial_position = [{LAT}, {LON}, {H}], coarse_alignment = "10 s", alignment = "40 s" }}
+
+[run]
+seeds = [1]
+
+[scoring]
+convergence = "{NAV_FROM_S:g} s"
+
+[[criterion]]
+id = "H"
+requirement = "R"
+metric = "accuracy.horizontal.max"
+window = "converged"
+at_most = "0.5 m"
+
+[[criterion]]
+id = "V"
+requirement = "R"
+metric = "accuracy.vertical.max"
+window = "converged"
+at_most = "0.5 m"
+"""
+
+
+def test_a_case_whose_imu_runs_at_100_hz_passes_at_the_default_step(folder):
+    """``bench run`` of a case with ``imu = { rate = "100 Hz" }`` (a step holds one frame):
+    before, 5 ms per frame and a FAIL by metres; now the parked point within centimetres."""
+    d = folder / "case100"
+    d.mkdir()
+    (d / "parked.toml").write_text(PARKED.format(rate="100 Hz", duration="90 s"))
+    (d / "case.toml").write_text(CASE_100)
+    r = bench("run", str(d / "case.toml"), "-o", str(d / "out"), "-q", cwd=d, expect=0)
+    assert "PASS     IMU100" in r.out, r.out
