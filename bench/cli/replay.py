@@ -41,6 +41,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="seek: replay from this bench time of the recording, s (a whole number of steps); the "
                    "replay's bench time starts at 0 there (field logs: the DUT's first BENCH_TIME is this time)")
     p.add_argument("--step", type=float, default=10.0, help="scheduler step, ms (default 10)")
+    p.add_argument("--imu-rate", help="the rate the IMU stream was recorded at ('100 Hz'): the replay is refused "
+                   "when the stream runs at another (docs/run_engine.md, 'The IMU rate of a replay')")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     _field_log_options(p)
     p.set_defaults(handler=_run)
@@ -88,6 +90,7 @@ def _run(args: argparse.Namespace) -> int:
     from bench.faults.schedule import FaultSchedule
     from bench.record.lock import preflight
     from bench.run.engine import execute
+    from bench.run.imu_rate import check_replay
     from bench.run.replay import RecordingReplay
     from bench.run.spec import ClockSpec, DutSpec, LinkSpec
     from bench.scoring.integrity import DUT_STATUSES
@@ -99,6 +102,7 @@ def _run(args: argparse.Namespace) -> int:
         if not math.isfinite(value) or value <= 0 or value > 1e6:
             raise ConfigError(f"expected a positive number, found {value:g}", key=f"--{name}")
     links = LinkSpec()
+    case = None
     clock = ClockSpec(mode=args.clock or "lockstep", step_ns=round(args.step * 1e6), speed=args.speed)
     if args.case:
         from bench.acceptance.case import load_case
@@ -144,6 +148,7 @@ def _run(args: argparse.Namespace) -> int:
     else:
         provider = RecordingReplay(args.recording, lockstep=clock.lockstep, faults=faults, start_ns=start_ns,
                                    accept_damaged_source=args.accept_damaged_source)
+    check_replay(provider, args.imu_rate, case)  # the stream at the declared rate (bench.run.imu_rate)
     preflight(args.out, force=args.force)  # the inputs first, then the output
     if not logs:
         _say_source(provider, args.quiet)

@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from bench.dut import MODE_ALIGNING, NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE, EstimatorOutput
+from bench.errors import ConfigError
 from bench.nav.alignment import coarse_align
 from bench.nav.rotation import dcm_to_quat
 
@@ -37,12 +38,17 @@ class RestAlignment:
         self.first_ns: int | None = None  # the first IMU frame's time
 
     def add(self, imu: np.ndarray) -> None:
-        """Sum one step's increments (IMU_SAMPLE_DTYPE rows)."""
+        """Sum one step's increments (IMU_SAMPLE_DTYPE rows); the gaps between consecutive
+        frames' times of validity are kept, across steps too (a step may hold one frame, or
+        none: 100 Hz at 10 ms steps, 1 Hz at any step)."""
         if len(imu):
+            t = imu["t_ns"].astype(np.int64)
             if self.first_ns is None:
-                self.first_ns = int(imu["t_ns"][0])
-            if len(imu) > 1:
-                self._gaps.append(np.diff(imu["t_ns"]))
+                self.first_ns = int(t[0])
+                if len(t) > 1:
+                    self._gaps.append(np.diff(t))
+            else:
+                self._gaps.append(np.diff(t, prepend=self.last_ns))
             self.sum_th += imu["dtheta"].sum(axis=0)
             self.sum_dv += imu["dvel"].sum(axis=0)
             self.last_ns = int(imu["t_ns"][-1])
@@ -81,9 +87,20 @@ class RestAlignment:
         return dcm_to_quat(coarse_align(self.sum_dv / T, self.sum_th / T, lat))
 
     def nominal_step_s(self) -> float:
-        """The median IMU interval seen, s (5 ms before two samples)."""
-        gaps = np.concatenate(self._gaps) if self._gaps else np.zeros(0)
-        return float(np.median(gaps)) * 1e-9 if len(gaps) else 0.005
+        """The IMU interval measured over the coarse period: the median gap between
+        consecutive frames' times of validity, s. Never assumed: fewer than two frames
+        (a coarse period shorter than the IMU's interval) is a ConfigError naming
+        ``dut.config.coarse_alignment``."""
+        gaps = np.concatenate(self._gaps) if self._gaps else np.zeros(0, np.int64)
+        gaps = gaps[gaps > 0]  # a repeated time of validity is no interval
+        if not len(gaps):
+            seen = "no IMU frame" if self.first_ns is None else "one IMU frame time"
+            raise ConfigError(
+                f"the coarse alignment saw {seen} up to bench time {self.last_ns / 1e9:g} s: the IMU interval "
+                "cannot be measured; make the coarse alignment last at least two IMU intervals",
+                key="dut.config.coarse_alignment",
+            )
+        return float(np.median(gaps)) * 1e-9
 
     def finish(self) -> None:
         self.coarse = False

@@ -211,10 +211,13 @@ class Seed001(Estimator):
         from bench.estimators.jit import compile_for
         from bench.wire.imu import IMU_SAMPLE_DTYPE
 
-        imu = np.zeros(2, IMU_SAMPLE_DTYPE)  # two frames: field views as a step's (not contiguous)
-        compile_for(K.run_step, self.st, self.P, self.prm, self.xm, self.hist, imu["dtheta"], imu["dvel"],
-                    imu["t_ns"], _EMPTY_I, _EMPTY_F, _EMPTY_I, self._pending, np.zeros(2, NAV_SOLUTION_DTYPE),
-                    np.zeros(2, NAV_QUALITY_DTYPE))
+        # two frames: field views as a multi-frame step's (not contiguous); one frame (or none): as a
+        # step of an IMU at or below the step rate's (contiguous views, numba's other specialization)
+        for n in (2, 1):
+            imu = np.zeros(n, IMU_SAMPLE_DTYPE)
+            compile_for(K.run_step, self.st, self.P, self.prm, self.xm, self.hist, imu["dtheta"], imu["dvel"],
+                        imu["t_ns"], _EMPTY_I, _EMPTY_F, _EMPTY_I, self._pending, np.zeros(2, NAV_SOLUTION_DTYPE),
+                        np.zeros(2, NAV_QUALITY_DTYPE))
 
     # -- the step --------------------------------------------------------------------------
     def step(self, inputs: DutInputs) -> EstimatorOutput:
@@ -269,6 +272,8 @@ class Seed001(Estimator):
         st[K.S_STILL] = -1.0
         st[K.S_LAST_BDS] = st[K.S_LAST_ODO] = -1e18
         st[K.S_TNOM] = self._rest.nominal_step_s()
+        # the INS history holds 2 s at the measured rate (HIST_LEN: 2 s at 200 Hz, the least kept)
+        self.hist = np.zeros((max(K.HIST_LEN, math.ceil(2.0 / st[K.S_TNOM] - 1e-9)), 14))
         diag = core_covariance(K.N_STATES, c, t_ns * 1e-9, lat)
         diag[DK] = c["odometer_scale_sigma"] ** 2
         diag[DDT] = c["time_offset_sigma"] ** 2 if self.switch["time_offset_estimation"] else 0.0

@@ -212,10 +212,13 @@ class Seed002(Estimator):
         from bench.estimators.jit import compile_for
         from bench.wire.imu import IMU_SAMPLE_DTYPE
 
-        imu = np.zeros(2, IMU_SAMPLE_DTYPE)  # two frames: field views as a step's (not contiguous)
-        compile_for(K.run_step, self.st, self.P, self.prm, imu["dtheta"], imu["dvel"], imu["t_ns"],
-                    _EMPTY_I, _EMPTY_I, _EMPTY_I, _EMPTY_I, _EMPTY_I, _EMPTY_I, _EMPTY_I,
-                    np.zeros(2, NAV_SOLUTION_DTYPE), np.zeros(2, NAV_QUALITY_DTYPE))
+        # two frames: field views as a multi-frame step's (not contiguous); one frame (or none): as a
+        # step of an IMU at or below the step rate's (contiguous views, numba's other specialization)
+        for n in (2, 1):
+            imu = np.zeros(n, IMU_SAMPLE_DTYPE)
+            compile_for(K.run_step, self.st, self.P, self.prm, imu["dtheta"], imu["dvel"], imu["t_ns"],
+                        _EMPTY_I, _EMPTY_I, _EMPTY_I, _EMPTY_I, _EMPTY_I, _EMPTY_I, _EMPTY_I,
+                        np.zeros(2, NAV_SOLUTION_DTYPE), np.zeros(2, NAV_QUALITY_DTYPE))
 
     # -- the step --------------------------------------------------------------------------
     def step(self, inputs: DutInputs) -> EstimatorOutput:

@@ -110,6 +110,7 @@ class Seed003(Estimator):
         self._cmd_code = _EMPTY_I
         self._rest = RestAlignment()
         self._started = False
+        self._held: np.ndarray | None = None  # a moving start's first frame until a second one comes
         self._out_ns = 10_000_000
         self._out = OutputBlocks()
 
@@ -205,10 +206,13 @@ class Seed003(Estimator):
         from bench.estimators.jit import compile_for
         from bench.wire.imu import IMU_SAMPLE_DTYPE
 
-        imu = np.zeros(2, IMU_SAMPLE_DTYPE)
-        compile_for(K.run_step, self.st, self.P, self.prm, imu["dtheta"], imu["dvel"], imu["t_ns"], _EMPTY_I,
-                    _EMPTY_F, _EMPTY_I, _EMPTY_I, _EMPTY_I, self._fixes, np.zeros(2, NAV_SOLUTION_DTYPE),
-                    np.zeros(2, NAV_QUALITY_DTYPE))
+        # two frames: field views as a multi-frame step's (not contiguous); one frame (or none): as a
+        # step of an IMU at or below the step rate's (contiguous views, numba's other specialization)
+        for n in (2, 1):
+            imu = np.zeros(n, IMU_SAMPLE_DTYPE)
+            compile_for(K.run_step, self.st, self.P, self.prm, imu["dtheta"], imu["dvel"], imu["t_ns"], _EMPTY_I,
+                        _EMPTY_F, _EMPTY_I, _EMPTY_I, _EMPTY_I, self._fixes, np.zeros(2, NAV_SOLUTION_DTYPE),
+                        np.zeros(2, NAV_QUALITY_DTYPE))
 
     # -- the step --------------------------------------------------------------------------
     def step(self, inputs: DutInputs) -> EstimatorOutput:
@@ -225,8 +229,12 @@ class Seed003(Estimator):
             self._cmd_t, self._cmd_code = self._cmd_t[:0], self._cmd_code[:0]  # none applies while aligning
             return out
         if not self._started:
-            if not len(imu):
+            if self._held is not None:  # the first frame(s) of a moving start, held for their interval
+                imu = np.concatenate([self._held, imu])
+            if len(imu) < 2:  # the IMU interval is measured from two frames' times, never assumed
+                self._held = imu.copy() if len(imu) else None
                 return EstimatorOutput()
+            self._held = None
             self._start_moving(imu)
         can = inputs.can
         d = can.columns("DOPPLER", _DOP_COLUMNS) if type(can) is CanView else None
@@ -277,7 +285,7 @@ class Seed003(Estimator):
         c = self.cfg
         lat, lon, h = self.position  # type: ignore[misc]
         t = imu["t_ns"].astype(np.int64)
-        step = float(np.median(np.diff(t))) * 1e-9 if len(t) > 1 else 0.005
+        step = float(np.median(np.diff(t))) * 1e-9  # two frames at least (step)
         sg = np.zeros(20)
         sg[0:3] = lat, lon, h
         sg[3:6] = self.vec["initial_velocity"]

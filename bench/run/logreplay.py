@@ -33,6 +33,7 @@ from bench.record.mcap_io import RecordingWriter
 from bench.run.bytelogs import NmeaLog, imu_log_chunks, read_nmea_log
 from bench.run.fieldcan import BENCH_TO_DUT, DUT_TO_BENCH, place_can_log, with_lockstep_bit
 from bench.run.fieldtruth import TruthTrack, TruthWriter
+from bench.run.imu_rate import measure_stream
 from bench.run.provider import COMMANDS_TOPIC, TrafficProvider
 from bench.run.spec import BENCH_TIME_PERIOD_NS
 from bench.run.traffic import BENCH_TIME_ID, COMMAND_CODES, Traffic, _ordered, faulted, slice_window
@@ -146,6 +147,7 @@ class LogReplay(TrafficProvider):
         )
         can, logged_epochs = self._can() if logs.can else (CanBatch.empty(), np.zeros(0, np.int64))
         imu = self._imu() if logs.imu else SerialBatch.empty()
+        self.imu_rate = measure_stream(imu, source=str(logs.imu))  # refuses a rate change; bench.run.imu_rate
         nmea = read_nmea_log(_read_bytes(logs.gnss, "NMEA byte log"), file=str(logs.gnss)) if logs.gnss else None
         self.epoch_ns, self.epoch_source = self._epoch(logged_epochs, can, imu, nmea)
         gnss = self._gnss(nmea) if nmea is not None else SerialBatch.empty()

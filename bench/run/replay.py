@@ -37,6 +37,7 @@ from bench.record.mcap_io import COLUMNAR, RecordingReader, RecordingWriter
 from bench.record.provenance import source_metadata
 from bench.record.wire_topics import CAN_TX, SERIAL_TX, read_can, read_serial
 from bench.run.fieldcan import with_lockstep_bit
+from bench.run.imu_rate import measure_stream
 from bench.run.provider import COMMANDS_TOPIC, TrafficProvider
 from bench.run.rebase import rebase_can, rebase_records, rebase_segments, rebase_serial, rebase_window
 from bench.run.source import SEGMENTS_TOPIC
@@ -150,6 +151,8 @@ class RecordingReplay(TrafficProvider):
                 topics=sensor_topics,
             )
             self._traffic = None
+        self.imu_rate = measure_stream(self._traffic[1] if self._traffic is not None else self._columns.get("/imu"),
+                                       source=str(self.path))  # refuses a rate change; bench.run.imu_rate
         span = [int(v["t_ns"].max()) for v in self._columns.values() if len(v)]
         if self._traffic is not None:
             span += [int(b.t_ns.max()) for b in self._traffic if len(b)]
