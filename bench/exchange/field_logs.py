@@ -429,7 +429,7 @@ def read_gnss_log(path: str | Path, fmt: str) -> tuple[np.ndarray, np.ndarray, s
         base = "gps_sow"
         lat, lon, h = np.radians(rows[:, 1]), np.radians(rows[:, 2]), rows[:, 3]
         sig = rows[:, 4:7]
-        vel = _velocity(t, lat, lon, h)
+        vel = np.zeros((len(t), 3))  # not sent (see convert_field_logs)
         notes = lines
     else:
         raise ConfigError(f"expected one of {', '.join(GNSS_FORMATS)}, found {fmt!r}", key="--gnss-format")
@@ -443,18 +443,6 @@ def read_gnss_log(path: str | Path, fmt: str) -> tuple[np.ndarray, np.ndarray, s
     fixes["sigma_lat"], fixes["sigma_lon"], fixes["sigma_alt"] = sig[:, 0], sig[:, 1], np.abs(sig[:, 2])
     fixes["quality"], fixes["sats"], fixes["hdop"] = 1, 0, 0.0
     return fixes, t, base
-
-
-def _velocity(t_ns: np.ndarray, lat: np.ndarray, lon: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """ENU velocity of positions by central differences (one-sided at the ends)."""
-    if len(t_ns) < 2:
-        return np.zeros((len(t_ns), 3))
-    rn, re = earth.radii(lat)
-    t = (t_ns - t_ns[0]) * 1e-9
-    e = np.gradient(lon, t) * (re + h) * np.cos(lat)
-    n = np.gradient(lat, t) * (rn + h)
-    u = np.gradient(h, t)
-    return np.column_stack([e, n, u])
 
 
 # ---------------------------------------------------------------------------------------- truth
@@ -551,9 +539,14 @@ def convert_field_logs(imu: Path | None, gnss: Path | None, *, imu_format: str |
         fixes["utc_ns"] = fixes["t_ns"] + ep
         keep = fixes["t_ns"] >= 0
         try:
-            out.gnss_data = encode_epochs(fixes[keep]).buf.tobytes()
+            batch = encode_epochs(fixes[keep])
         except CodecError as exc:
             raise ConfigError(f"cannot encode as NMEA: {exc}", file=str(gnss)) from None
+        # gnss.pos has no velocity: only GGA, GST and ZDA go out (RMC and VTG would carry a made-up speed)
+        kinds = np.arange(len(batch)) % 5
+        sent = [bytes(batch.buf[batch.offsets[k]:batch.offsets[k + 1]]) for k in np.flatnonzero(
+            np.isin(kinds, (1, 2, 4)))]
+        out.gnss_data = b"".join(sent)
         out.figures["gnss_conversion"] = {"format": out.gnss_format, "fixes": int(keep.sum())}
     if truth is not None and truth_format == "kfgins":
         if base == "gps_sow" and out.epoch_ns is not None:
