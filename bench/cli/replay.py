@@ -108,6 +108,7 @@ def _run(args: argparse.Namespace) -> int:
             raise ConfigError(f"expected a positive number, found {value:g}", key=f"--{name}")
     links = LinkSpec()
     clock = ClockSpec(mode=args.clock or "lockstep", step_ns=round(args.step * 1e6), speed=args.speed)
+    attachments = None
     if args.case:
         from bench.acceptance.case import load_case
         from bench.run.case_runner import _links
@@ -122,6 +123,8 @@ def _run(args: argparse.Namespace) -> int:
         links = _links({k: dict(v) for k, v in case.dut.links.items()})
         clock = ClockSpec(mode=args.clock or case.clock.mode, step_ns=case.clock.step_ns,
                           timeout_s=case.clock.timeout_ns / 1e9, speed=args.speed)
+        # a field-log replay is judged against the case given (a recording's replay carries its own)
+        attachments = [(f"case/{case.file_name}", case.text.encode(), "application/toml")]
     elif args.estimator:
         dut = DutSpec(kind="in_process", name=args.estimator, config=_dut_config(args.dut_config))
     elif args.dut_command:
@@ -156,11 +159,15 @@ def _run(args: argparse.Namespace) -> int:
     if not logs:
         _say_source(provider, args.quiet)
     with progress_bar("replay", (provider.duration_ns - provider.start_ns) * 1e-9, enabled=not args.quiet) as bar:
-        result = execute(provider, dut, links, clock, Path(args.out), progress=bar, overwrite=args.force)
+        result = execute(provider, dut, links, clock, Path(args.out), progress=bar, overwrite=args.force,
+                         attachments=attachments if logs else None)
     print(for_terminal(f"{result.path}: {result.status}" + (f" ({result.reason})" if result.reason else "")
                        + f", {result.bench_s:.1f} s of bench time in {result.elapsed_s:.1f} s"))
     if result.timing is not None:
         print(f"  timing: {result.timing.text()}", file=sys.stderr)
+    if logs and not args.case and not args.quiet:
+        print(f"bench replay: judge it against a test case's criteria: bench score {result.path} --case CASE.toml",
+              file=sys.stderr)
     if result.status in DUT_STATUSES:
         return 1  # the DUT failed (docs/scoring.md, "Verdicts")
     if not result.ok:

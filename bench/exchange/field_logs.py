@@ -50,7 +50,15 @@ from bench.exchange.i2nav_text import NAV_COLUMNS, frd_to_rfu, read_table
 from bench.nav import earth
 from bench.scenario.track import Track
 from bench.sensors.imu.logs import ImuLog, read_psins_imu
-from bench.wire.imu import DTHETA_LSB, DVEL_LSB, FRAME_SIZE, STATUS_ALL_VALID, carry_quantize, encode_frames
+from bench.wire.imu import (
+    DTHETA_LSB,
+    DVEL_LSB,
+    FRAME_SIZE,
+    STATUS_ALL_VALID,
+    carry_quantize,
+    decode_frames,
+    encode_frames,
+)
 from bench.wire.imu_stream import accept_frames
 from bench.wire.nmea import GNSS_FIX_DTYPE, encode_epochs
 
@@ -362,9 +370,26 @@ def read_imu_log(path: str | Path, fmt: str | None = None) -> ImuSamples:
     return readers[fmt](path)
 
 
+def _icd_samples(path: Path) -> ImuSamples:
+    """The frames of an ICD byte log of the imu line, decoded (garbage between them skipped)."""
+    from bench.config.files import read_bytes
+
+    buf = np.frombuffer(read_bytes(path, what="IMU byte log"), np.uint8)
+    starts, _ = accept_frames(buf)
+    if starts.size < 2:
+        raise ConfigError(f"{starts.size} ICD IMU frame(s) found; " + _how_to(), file=str(path))
+    samples, _ = decode_frames(buf[starts[:, None] + np.arange(FRAME_SIZE)], check=False)
+    t = samples["t_ns"].astype(np.int64)
+    _check_times(t, None, str(path))
+    return ImuSamples("icd", str(path), t, samples["dtheta"].astype(float), samples["dvel"].astype(float),
+                      int(np.median(np.diff(t))))
+
+
 def imu_log_for_allan(path: str | Path, fmt: str | None = None) -> ImuLog:
-    """An :class:`ImuLog` (``bench imu allan``) of any IMU log format but ``icd``."""
-    s = read_imu_log(path, fmt)
+    """An :class:`ImuLog` (``bench imu allan``) of an IMU log of any format."""
+    path = Path(path)
+    fmt = fmt or sniff_imu(path)
+    s = _icd_samples(path) if fmt == "icd" else read_imu_log(path, fmt)
     if s.psins is not None:
         return s.psins
     steps = np.diff(s.t_ns)
@@ -574,7 +599,7 @@ def _week(gps_week: int | None, truth: Path | None, truth_format: str, epoch_ns:
         return _first_week(truth), f"the week column of {truth}"
     if epoch_ns is not None:
         gps = _gps_of_utc(epoch_ns) - zero_sow
-        return int(round(gps / (WEEK_S * _SEC))), "the week of --epoch"
+        return round(gps / (WEEK_S * _SEC)), "the week of --epoch"
     week = _gps_of_utc(default_epoch_ns) // (WEEK_S * _SEC)
     out.warnings.append(
         f"the logs are stamped in GPS seconds of week, which carry no week: the week is ASSUMED to be {week}, the "

@@ -214,7 +214,8 @@ def iter_table(path: str | Path, names: Sequence[str], *, what: str,
                header_lines: int = 0) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """Blocks of a whitespace-separated numeric text file whose first ``len(names)`` columns
     are ``names`` (more columns are ignored; ``#`` and ``%`` start comments, blank lines are
-    skipped; the first ``header_lines`` lines are skipped whatever they hold): an (n, len(names)) float array and the (n,) line numbers (from 1) the rows
+    skipped; the first ``header_lines`` lines are skipped whatever they hold): an
+    (n, len(names)) float array and the (n,) line numbers (from 1) the rows
     come from, for messages about them; at most :data:`BLOCK_ROWS` lines a block, so the
     file is never held whole.
 
