@@ -102,7 +102,7 @@ def _allan(args: argparse.Namespace) -> int:
     from bench.exchange.field_logs import imu_log_for_allan
     from bench.sensors.imu.analysis import analyse
     path = Path(args.file)
-    kind = "log" if path.is_dir() or args.format else sniff_any(path)
+    kind = "log" if (path.is_dir() and (path / "time.csv").is_file()) or args.format else sniff_any(path)
     if kind == "mcap":
         log = _from_recording(path, args.topic)
     elif path.suffix == ".mcap":

@@ -205,15 +205,13 @@ def _log_replay(args: argparse.Namespace, lockstep: bool, faults):
         return None if text is None else round(quantity(text, "time", "s", key=key) * 1e9)
 
     from bench.exchange.field_logs import convert_field_logs
-    from bench.runinfo import DEFAULT_EPOCH
     from bench.textsafe import for_terminal
 
     given_epoch = parse_epoch(args.epoch, key="--epoch") if args.epoch else None
     conv = convert_field_logs(
         Path(args.imu_log) if args.imu_log else None, Path(args.gnss_log) if args.gnss_log else None,
         imu_format=args.imu_format, gnss_format=args.gnss_format, epoch_ns=given_epoch, gps_week=args.gps_week,
-        truth=Path(args.truth) if args.truth else None, truth_format=args.truth_format,
-        default_epoch_ns=parse_epoch(DEFAULT_EPOCH), default_epoch_text=DEFAULT_EPOCH)
+        truth=Path(args.truth) if args.truth else None, truth_format=args.truth_format)
     for what, fmt in (("IMU", conv.imu_format), ("GNSS", conv.gnss_format)):
         if fmt and fmt not in ("icd", "nmea") and not args.quiet:
             print(f"bench replay: the {what} log is read as {fmt} and converted to the line's bytes", file=sys.stderr)

@@ -507,9 +507,11 @@ def _gps_of_utc(utc_ns: int) -> int:
 # ---------------------------------------------------------------------------------------- all
 def convert_field_logs(imu: Path | None, gnss: Path | None, *, imu_format: str | None = None,
                        gnss_format: str | None = None, epoch_ns: int | None = None, gps_week: int | None = None,
-                       truth: Path | None = None, truth_format: str = "smartloc",
-                       default_epoch_ns: int = 0, default_epoch_text: str = "") -> FieldConversion:
+                       truth: Path | None = None, truth_format: str = "smartloc") -> FieldConversion:
     """Read and convert the field logs (module docstring) and fix the time base."""
+    from bench.runinfo import DEFAULT_EPOCH, parse_epoch
+
+    default_epoch_ns, default_epoch_text = parse_epoch(DEFAULT_EPOCH), DEFAULT_EPOCH
     out = FieldConversion()
     samples = None
     if imu is not None:

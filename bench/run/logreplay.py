@@ -109,6 +109,18 @@ def _read_bytes(path: Path, what: str) -> bytes:
     return read_bytes(path, what=what)
 
 
+def _digest(path: Path) -> str:
+    """SHA-256 of a log file; of a folder of logs (gnss-ins-sim output), of its files' names and
+    digests in name order."""
+    if path.is_dir():
+        h = hashlib.sha256()
+        for f in sorted(q for q in path.iterdir() if q.is_file()):
+            h.update(f"{f.name}\0{_digest(f)}\n".encode())
+        return h.hexdigest()
+    with path.open("rb") as fh:
+        return hashlib.file_digest(fh, "sha256").hexdigest()
+
+
 class LogReplay(TrafficProvider):
     """The traffic of field logs (see the module docstring and docs/run_engine.md).
 
@@ -285,8 +297,7 @@ class LogReplay(TrafficProvider):
         }
         for kind, p in files.items():
             out[f"{kind}_log"] = str(p)
-            with p.open("rb") as fh:
-                out[f"{kind}_log_sha256"] = hashlib.file_digest(fh, "sha256").hexdigest()
+            out[f"{kind}_log_sha256"] = _digest(p)
         out.update(self.placement)
         if self.windows:
             out["seed"] = str(self.seed)
