@@ -109,11 +109,12 @@ def _run(args: argparse.Namespace) -> int:
     links = LinkSpec()
     clock = ClockSpec(mode=args.clock or "lockstep", step_ns=round(args.step * 1e6), speed=args.speed)
     attachments = None
+    logs = args.can_log or args.imu_log or args.gnss_log
     if args.case:
         from bench.acceptance.case import load_case
         from bench.run.case_runner import _links
 
-        case = load_case(args.case)
+        case = load_case(args.case, check_files=not logs)  # a field-log replay uses no scenario file
         if case.dut.kind not in ("in_process", "external", "hardware"):
             raise ConfigError(f"a replay needs an in_process, external or hardware DUT, the case has "
                               f"{case.dut.kind!r}",
@@ -134,7 +135,6 @@ def _run(args: argparse.Namespace) -> int:
     faults: FaultSchedule | None = None
     if args.faults:
         faults = fault_schedule({}, extra=[args.faults])
-    logs = args.can_log or args.imu_log or args.gnss_log
     if bool(args.recording) == bool(logs):
         raise ConfigError("give either a recording or field logs (--can-log, --imu-log, --gnss-log)", key="recording")
     if not math.isfinite(args.start) or args.start < 0 or args.start > 1e7:
