@@ -87,6 +87,8 @@ def sniff_any(path: Path) -> str:
     try:
         return sniff(path)
     except ConfigError:
+        if not path.is_file():  # a FIFO or device is never opened
+            raise
         try:
             with path.open("rb") as fh:
                 head = fh.read(1 << 16)

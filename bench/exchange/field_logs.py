@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.config.files import read_toml
+from bench.config.files import read_toml, regular_file
 from bench.errors import CodecError, ConfigError
 from bench.exchange.gpstime import WEEK_S, leap_seconds
 from bench.exchange.i2nav_text import NAV_COLUMNS, frd_to_rfu, read_table
@@ -177,8 +177,7 @@ def sniff_imu(path: Path) -> str:
         if (path / "time.csv").is_file() and any(path.glob("gyro-*.csv")):
             return "gnss-ins-sim"
         raise ConfigError(f"a folder without gnss-ins-sim output (time.csv, gyro-N.csv); {_how_to()}", file=str(path))
-    if not path.exists():
-        raise ConfigError("no such file", file=str(path))
+    regular_file(path, what="IMU log")  # no FIFO, device or huge file is opened
     if _declaration(path) is not None:
         return "declared"
     head = _head(path)
@@ -186,7 +185,7 @@ def sniff_imu(path: Path) -> str:
         return "icd"
     text = head.decode("utf-8", "replace")
     lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
-    if lines and lines[0].startswith("%"):
+    if (lines and lines[0].startswith("%")) or path.suffix.lower() == ".imu":  # PSINS's header, or its extension
         return "psins"
     if lines and "gyro_x (" in lines[0]:
         return "gnss-ins-sim"
