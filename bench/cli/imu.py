@@ -30,7 +30,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     a.add_argument("file", help="IMU log (PSINS .imu, KF-GINS imu.txt, gnss-ins-sim output, a TOML-declared text "
                    "log, an ICD byte log of the imu line) or MCAP recording")
-    a.add_argument("--format", choices=("icd", "psins", "kfgins", "gnss-ins-sim", "declared"),
+    a.add_argument("--format", "--imu-format", dest="format",
+                   choices=("icd", "psins", "kfgins", "gnss-ins-sim", "declared"),
                    help="format of a log (default: recognised by its content; docs/exchange.md)")
     a.add_argument("--topic", default="/imu", help="IMU topic of an MCAP recording (default /imu)")
     a.add_argument("--plot", help="write the Allan deviation plot to this PNG file")

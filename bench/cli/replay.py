@@ -8,7 +8,9 @@ recording. The new recording carries the original truth, so it is judged like th
 original (``bench score``); a replay of an unfinished or damaged recording is ERROR
 unless ``--accept-damaged-source``. Instead of a recording, field logs of a drive (``--can-log`` ASC/BLF,
 ``--imu-log``, ``--gnss-log``; ``--truth`` to score it) are re-emitted the same way, with
-``--faults`` adding wire faults (docs/run_engine.md, "Replaying field logs").
+``--faults`` adding wire faults (docs/run_engine.md, "Replaying field logs"); IMU and GNSS
+logs in other formats (PSINS, KF-GINS, gnss-ins-sim, a TOML-declared log) are converted to
+the lines' streams first (docs/exchange.md, "Field logs in other formats").
 """
 
 from __future__ import annotations

@@ -49,7 +49,7 @@ from bench.exchange.gpstime import WEEK_S, leap_seconds
 from bench.exchange.i2nav_text import NAV_COLUMNS, frd_to_rfu, read_table
 from bench.nav import earth
 from bench.scenario.track import Track
-from bench.sensors.imu.logs import ImuLog, read_psins_imu
+from bench.sensors.imu.logs import ImuLog, check_log, read_psins_imu
 from bench.wire.imu import (
     DTHETA_LSB,
     DVEL_LSB,
@@ -393,7 +393,9 @@ def imu_log_for_allan(path: str | Path, fmt: str | None = None) -> ImuLog:
         return s.psins
     steps = np.diff(s.t_ns)
     irregular = int(np.sum(np.abs(steps - s.dt_ns) > 0.01 * s.dt_ns))
-    return ImuLog(s.dtheta, s.dvel, s.dt_ns * 1e-9, None, s.source, irregular=irregular)
+    log = ImuLog(s.dtheta, s.dvel, s.dt_ns * 1e-9, None, s.source, irregular=irregular)
+    check_log(log)
+    return log
 
 
 def icd_stream(t_ns: np.ndarray, dtheta: np.ndarray, dvel: np.ndarray, *, file: str = "",

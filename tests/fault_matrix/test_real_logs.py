@@ -25,6 +25,7 @@ import numpy as np
 import pytest
 
 from tests.fault_matrix.matrix import bench
+from tests.run.duts.icd_select import crc16
 
 HERE = Path(__file__).parent
 PSINS = HERE.parent / "data" / "psins_lasergyro_10min.imu"
@@ -33,14 +34,8 @@ LSB_TH, LSB_V = 1e-9, 1e-8
 
 
 # ----------------------------------------------------------------------------- ICD 3, from ICD.md
-def _crc16(data: bytes) -> int:
-    """CRC-16/CCITT-FALSE: poly 0x1021, init 0xFFFF, no reflection, xorout 0."""
-    crc = 0xFFFF
-    for b in data:
-        crc ^= b << 8
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x1021) & 0xFFFF if crc & 0x8000 else (crc << 1) & 0xFFFF
-    return crc
+# CRC-16/CCITT-FALSE as ICD 1 states it, written without the bench (the sample external DUT's)
+_crc16 = crc16
 
 
 def decode_icd(data: bytes, *, check_crc: int = 50) -> dict[str, np.ndarray]:
