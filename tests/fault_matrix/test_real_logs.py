@@ -363,3 +363,31 @@ def test_export_then_replay_of_the_i2nav_files_gives_the_same_verdicts(original,
     assert np.array_equal(f["t_us"] * 1000, imu["t_ns"])
     assert np.all(np.abs(f["dth"].sum(axis=0) - imu["dtheta"].sum(axis=0) / LSB_TH) <= 1.0 + 1e-3)
     assert np.all(np.abs(f["dv"].sum(axis=0) - imu["dvel"].sum(axis=0) / LSB_V) <= 1.0 + 1e-3)
+
+
+def test_seconds_of_week_take_the_week_from_an_option_or_the_truth_or_say_it_is_assumed(tmp_path):
+    """GPS seconds of week carry no week: --gps-week, a truth.nav's week column, or --epoch
+    (which must agree with the log) date the log; without any the week is assumed, loudly."""
+    from bench.errors import ConfigError
+    from bench.exchange.field_logs import convert_field_logs
+
+    src = tmp_path / "imu.txt"
+    _kfgins_file(src, n=100, sow0=345_600.0)  # Thursday 00:00 GPS of the week
+    week = 2350
+    # UTC = GPS - 18 s; GPS zero 1980-01-06
+    want = (315_964_800 + week * 604_800 + 345_600 - 18) * 10**9
+    conv = convert_field_logs(src, None, gps_week=week)
+    assert conv.epoch_ns == want and not conv.warnings and "week 2350 (--gps-week)" in conv.epoch_rule
+    nav = tmp_path / "truth.nav"
+    nav.write_text("".join(f"{week} {345_600 + k * 0.1:.3f} 30.0 110.0 50.0 0 0 0 0 0 90\n" for k in range(10)))
+    conv = convert_field_logs(src, None, truth=nav, truth_format="kfgins")
+    assert conv.epoch_ns == want and "week column" in conv.epoch_rule
+    assert conv.truth is not None and abs(conv.truth.t[0]) < 1e-9  # the truth's first line is bench time zero
+    conv = convert_field_logs(src, None)
+    assert conv.warnings and "ASSUMED" in conv.warnings[0] and "--gps-week" in conv.warnings[0]
+    assert conv.epoch_rule.startswith("the logs' GPS seconds of week with week") and "ASSUMED" in conv.epoch_rule
+    ok = convert_field_logs(src, None, epoch_ns=want)
+    assert ok.epoch_ns == want and not ok.warnings
+    with pytest.raises(ConfigError) as err:
+        convert_field_logs(src, None, epoch_ns=want + 3_600 * 10**9, gps_week=week)
+    assert "--epoch" in str(err.value) and "--gps-week" in str(err.value)
