@@ -205,6 +205,14 @@ def test_malformed_logs_name_the_file_and_the_line(tmp_path):
     r = bench("replay", "--imu-log", str(src), "--estimator", "decode_only", "-o", "o.mcap", "-q", cwd=tmp_path,
               expect=2)
     assert str(src) in r.err and "line 32" in r.err and "not later" in r.err, r.err
+    # a PSINS sample that is no number: its line in the file
+    text = PSINS.read_text().splitlines()
+    first = next(i for i, ln in enumerate(text) if ln.strip() and not ln.startswith("%")) + 3  # after 3 parameter lines
+    bad = tmp_path / "bad.imu"
+    bad.write_text("\n".join([*text[:first + 10], "1 2 x 4 5 6", *text[first + 10:first + 300]]) + "\n")
+    r = bench("replay", "--imu-log", str(bad), "--estimator", "decode_only", "-o", "o.mcap", "-q", cwd=tmp_path,
+              expect=2)
+    assert str(bad) in r.err and f"line {first + 11}:" in r.err and "'1 2 x 4 5 6'" in r.err, r.err
     # a declaration with a unit the bench does not know names the key
     log = tmp_path / "d.csv"
     log.write_text("0,1,2,3,4,5,6\n")

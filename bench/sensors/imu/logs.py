@@ -98,7 +98,8 @@ def read_psins_imu(path: str | Path) -> ImuLog:
         text = read_bytes(path, what=_WHAT, limit=MAX_TEXT_BYTES).decode("utf-8")
     except UnicodeDecodeError:
         raise ConfigError("not UTF-8 text; expected a PSINS .imu text log", file=file) from None
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("%")]
+    numbered = [(n, ln) for n, ln in enumerate(text.splitlines(), 1) if ln.strip() and not ln.lstrip().startswith("%")]
+    lines = [ln for _, ln in numbered]
     if len(lines) < 4:
         raise ConfigError(
             f"not a PSINS IMU log: expected three parameter lines and samples after the % header, found "
@@ -132,6 +133,14 @@ def read_psins_imu(path: str | Path) -> ImuLog:
     try:
         data = np.loadtxt(lines[3:], dtype=float, ndmin=2)
     except ValueError as exc:
+        for n, ln in numbered[3:]:
+            parts = ln.split()
+            try:
+                if len(parts) != 6 or not all(math.isfinite(float(v)) for v in parts):
+                    raise ValueError
+            except ValueError:
+                raise ConfigError(f"line {n}: expected six numbers (a sample), found {ln.strip()[:60]!r}",
+                                  file=file) from None
         raise ConfigError(f"samples are not six numbers per line: {exc}", file=file) from None
     if data.shape[1] != 6:
         raise ConfigError(f"expected six columns per sample, found {data.shape[1]}", file=file)
