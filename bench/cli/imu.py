@@ -21,13 +21,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     a = s.add_parser(
         "allan",
         help="Allan deviation and IEEE noise terms of a static IMU log",
-        description="Read a static IMU log (PSINS .imu text, or an MCAP recording's IMU topic), "
+        description="Read a static IMU log (PSINS .imu text, KF-GINS imu.txt, gnss-ins-sim output, a "
+        "TOML-declared text log, an ICD byte log, or an MCAP recording's IMU topic), "
         "compute the overlapping Allan deviation of each axis, fit quantization, random walk, "
         "bias instability, rate random walk and rate ramp over the averaging times where each "
         "dominates, print the fit residual, and warn when the log is not static. Unresolved terms "
         "are given as upper bounds.",
     )
-    a.add_argument("file", help="PSINS .imu file or MCAP recording")
+    a.add_argument("file", help="IMU log (PSINS .imu, KF-GINS imu.txt, gnss-ins-sim output, a TOML-declared text "
+                   "log, an ICD byte log of the imu line) or MCAP recording")
+    a.add_argument("--format", "--imu-format", dest="format",
+                   choices=("icd", "psins", "kfgins", "gnss-ins-sim", "declared"),
+                   help="format of a log (default: recognised by its content; docs/exchange.md)")
     a.add_argument("--topic", default="/imu", help="IMU topic of an MCAP recording (default /imu)")
     a.add_argument("--plot", help="write the Allan deviation plot to this PNG file")
     a.set_defaults(handler=_allan)
@@ -71,20 +76,43 @@ def _from_recording(path: Path, topic: str) -> Any:
     return log
 
 
+def sniff_any(path: Path) -> str:
+    """``mcap``, ``text``, or ``log`` for binary data holding ICD IMU frames (else the refusal of
+    :func:`~bench.sensors.imu.logs.sniff`)."""
+    import numpy as np
+
+    from bench.errors import ConfigError
+    from bench.sensors.imu.logs import sniff
+    from bench.wire.imu_stream import accept_frames
+
+    try:
+        return sniff(path)
+    except ConfigError:
+        if not path.is_file():  # a FIFO or device is never opened
+            raise
+        try:
+            with path.open("rb") as fh:
+                head = fh.read(1 << 16)
+        except OSError:
+            raise
+        if accept_frames(np.frombuffer(head, np.uint8))[0].size:
+            return "log"
+        raise
+
+
 def _allan(args: argparse.Namespace) -> int:
     from bench.errors import ConfigError
+    from bench.exchange.field_logs import imu_log_for_allan
     from bench.sensors.imu.analysis import analyse
-    from bench.sensors.imu.logs import read_psins_imu, sniff
-
     path = Path(args.file)
-    kind = sniff(path)
+    kind = "log" if (path.is_dir() and (path / "time.csv").is_file()) or args.format else sniff_any(path)
     if kind == "mcap":
         log = _from_recording(path, args.topic)
     elif path.suffix == ".mcap":
         raise ConfigError("named .mcap but does not start with the MCAP magic; it is text, not a recording",
                           file=str(path))
     else:
-        log = read_psins_imu(path)
+        log = imu_log_for_allan(path, args.format)
     report = analyse(log)
     print(report.text())
     if args.plot:

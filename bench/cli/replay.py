@@ -8,7 +8,9 @@ recording. The new recording carries the original truth, so it is judged like th
 original (``bench score``); a replay of an unfinished or damaged recording is ERROR
 unless ``--accept-damaged-source``. Instead of a recording, field logs of a drive (``--can-log`` ASC/BLF,
 ``--imu-log``, ``--gnss-log``; ``--truth`` to score it) are re-emitted the same way, with
-``--faults`` adding wire faults (docs/run_engine.md, "Replaying field logs").
+``--faults`` adding wire faults (docs/run_engine.md, "Replaying field logs"); IMU and GNSS
+logs in other formats (PSINS, KF-GINS, gnss-ins-sim, a TOML-declared log) are converted to
+the lines' streams first (docs/exchange.md, "Field logs in other formats").
 """
 
 from __future__ import annotations
@@ -51,9 +53,16 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _field_log_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("field logs (instead of a recording; times as '80 ms' or seconds)")
     g.add_argument("--can-log", help="python-can log of the vehicle bus (.asc, .blf)")
-    g.add_argument("--imu-log", help="raw bytes of the imu line (ICD 3 frames)")
-    g.add_argument("--gnss-log", help="raw bytes of the gnss line (NMEA)")
-    g.add_argument("--epoch", help="UTC of bench time zero, ISO 8601 (when the CAN log has no BENCH_EPOCH)")
+    g.add_argument("--imu-log", help="IMU log: the imu line's bytes (ICD 3 frames), a PSINS .imu, a KF-GINS imu.txt, "
+                   "gnss-ins-sim output, or a text/CSV log declared by a TOML beside it (docs/exchange.md)")
+    g.add_argument("--imu-format", choices=("icd", "psins", "kfgins", "gnss-ins-sim", "declared"),
+                   help="format of --imu-log (default: recognised by its content)")
+    g.add_argument("--gnss-log", help="GNSS log: the gnss line's bytes (NMEA) or a KF-GINS gnss.pos")
+    g.add_argument("--gnss-format", choices=("nmea", "kfgins"),
+                   help="format of --gnss-log (default: recognised by its content)")
+    g.add_argument("--epoch", help="UTC of bench time zero, ISO 8601 (when the logs do not carry it)")
+    g.add_argument("--gps-week", type=int,
+                   help="GPS week of logs stamped in GPS seconds of week (KF-GINS); default: a truth.nav's week")
     g.add_argument("--can-offset", help="bench time of the CAN log's first frame (logs without BENCH_TIME; default 0)")
     g.add_argument("--can-ids", choices=("icd", "all"), default="icd",
                    help="re-emit the ICD's bench-to-DUT messages only (default) or every classic frame")
@@ -61,7 +70,8 @@ def _field_log_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--imu-shift", default="0", help="added to the IMU frames' times of validity (re-stamped)")
     g.add_argument("--gnss-latency", default="0", help="NMEA epoch's UTC time to its sentences on the line")
     g.add_argument("--truth", help="ground-truth track of the drive, written as /truth so the replay can be scored")
-    g.add_argument("--truth-format", choices=("smartloc", "csv"), default="smartloc", help="truth file format")
+    g.add_argument("--truth-format", choices=("smartloc", "csv", "kfgins"), default="smartloc",
+                   help="truth file format (kfgins: a KF-GINS/OB_GINS .nav, e.g. truth.nav, in GPS week and sow)")
     g.add_argument("--truth-time", choices=("bench", "utc"), default="bench",
                    help="the truth's time column is bench time (default) or UTC seconds since 1970")
     g.add_argument("--truth-offset", default="0", help="added to the truth's times")
@@ -104,11 +114,13 @@ def _run(args: argparse.Namespace) -> int:
     links = LinkSpec()
     case = None
     clock = ClockSpec(mode=args.clock or "lockstep", step_ns=round(args.step * 1e6), speed=args.speed)
+    attachments = None
+    logs = args.can_log or args.imu_log or args.gnss_log
     if args.case:
         from bench.acceptance.case import load_case
         from bench.run.case_runner import _links
 
-        case = load_case(args.case)
+        case = load_case(args.case, check_files=not logs)  # a field-log replay uses no scenario file
         if case.dut.kind not in ("in_process", "external", "hardware"):
             raise ConfigError(f"a replay needs an in_process, external or hardware DUT, the case has "
                               f"{case.dut.kind!r}",
@@ -118,6 +130,8 @@ def _run(args: argparse.Namespace) -> int:
         links = _links({k: dict(v) for k, v in case.dut.links.items()})
         clock = ClockSpec(mode=args.clock or case.clock.mode, step_ns=case.clock.step_ns,
                           timeout_s=case.clock.timeout_ns / 1e9, speed=args.speed)
+        # a field-log replay is judged against the case given (a recording's replay carries its own)
+        attachments = [(f"case/{case.file_name}", case.text.encode(), "application/toml")]
     elif args.estimator:
         dut = DutSpec(kind="in_process", name=args.estimator, config=_dut_config(args.dut_config))
     elif args.dut_command:
@@ -127,7 +141,6 @@ def _run(args: argparse.Namespace) -> int:
     faults: FaultSchedule | None = None
     if args.faults:
         faults = fault_schedule({}, extra=[args.faults])
-    logs = args.can_log or args.imu_log or args.gnss_log
     if bool(args.recording) == bool(logs):
         raise ConfigError("give either a recording or field logs (--can-log, --imu-log, --gnss-log)", key="recording")
     if not math.isfinite(args.start) or args.start < 0 or args.start > 1e7:
@@ -153,11 +166,15 @@ def _run(args: argparse.Namespace) -> int:
     if not logs:
         _say_source(provider, args.quiet)
     with progress_bar("replay", (provider.duration_ns - provider.start_ns) * 1e-9, enabled=not args.quiet) as bar:
-        result = execute(provider, dut, links, clock, Path(args.out), progress=bar, overwrite=args.force)
+        result = execute(provider, dut, links, clock, Path(args.out), progress=bar, overwrite=args.force,
+                         attachments=attachments if logs else None)
     print(for_terminal(f"{result.path}: {result.status}" + (f" ({result.reason})" if result.reason else "")
                        + f", {result.bench_s:.1f} s of bench time in {result.elapsed_s:.1f} s"))
     if result.timing is not None:
         print(f"  timing: {result.timing.text()}", file=sys.stderr)
+    if logs and not args.case and not args.quiet:
+        print(f"bench replay: judge it against a test case's criteria: bench score {result.path} --case CASE.toml",
+              file=sys.stderr)
     if result.status in DUT_STATUSES:
         return 1  # the DUT failed (docs/scoring.md, "Verdicts")
     if not result.ok:
@@ -194,21 +211,46 @@ def _log_replay(args: argparse.Namespace, lockstep: bool, faults):
     def ns(text: str | None, key: str) -> int | None:
         return None if text is None else round(quantity(text, "time", "s", key=key) * 1e9)
 
+    from bench.exchange.field_logs import convert_field_logs
+    from bench.textsafe import for_terminal
+
+    given_epoch = parse_epoch(args.epoch, key="--epoch") if args.epoch else None
+    conv = convert_field_logs(
+        Path(args.imu_log) if args.imu_log else None, Path(args.gnss_log) if args.gnss_log else None,
+        imu_format=args.imu_format, gnss_format=args.gnss_format, epoch_ns=given_epoch, gps_week=args.gps_week,
+        truth=Path(args.truth) if args.truth else None, truth_format=args.truth_format)
+    for what, fmt in (("IMU", conv.imu_format), ("GNSS", conv.gnss_format)):
+        if fmt and fmt not in ("icd", "nmea") and not args.quiet:
+            print(f"bench replay: the {what} log is read as {fmt} and converted to the line's bytes", file=sys.stderr)
+    for w in conv.warnings:
+        print(for_terminal(f"bench replay: WARNING: {w}"), file=sys.stderr)
     logs = FieldLogs(
         can=Path(args.can_log) if args.can_log else None,
         imu=Path(args.imu_log) if args.imu_log else None,
         gnss=Path(args.gnss_log) if args.gnss_log else None,
-        epoch_ns=parse_epoch(args.epoch, key="--epoch") if args.epoch else None,
+        epoch_ns=conv.epoch_ns if conv.epoch_ns is not None else given_epoch,
         can_offset_ns=ns(args.can_offset, "--can-offset"),
         can_ids=args.can_ids,
         can_channel=args.can_channel,
         imu_shift_ns=ns(args.imu_shift, "--imu-shift") or 0,
         gnss_latency_ns=ns(args.gnss_latency, "--gnss-latency") or 0,
+        imu_data=conv.imu_data,
+        gnss_data=conv.gnss_data,
+        imu_format=conv.imu_format or "icd",
+        gnss_format=conv.gnss_format or "nmea",
+        epoch_rule=conv.epoch_rule,
+        figures=conv.figures,
     )
     truth = None
     if args.truth:
         truth = TruthTrack(Path(args.truth), format=args.truth_format, time=args.truth_time,
                            offset_ns=ns(args.truth_offset, "--truth-offset") or 0,
-                           smoothing=quantity(args.truth_smoothing, "length", "m", key="--truth-smoothing"))
-    return LogReplay(logs, lockstep=lockstep, truth=truth, faults=faults, seed=args.seed,
-                     start_ns=round(args.start * 1e9))
+                           smoothing=quantity(args.truth_smoothing, "length", "m", key="--truth-smoothing"),
+                           samples=conv.truth)
+        if conv.truth is not None:
+            truth.time = "bench"
+    replay = LogReplay(logs, lockstep=lockstep, truth=truth, faults=faults, seed=args.seed,
+                       start_ns=round(args.start * 1e9))
+    for w in replay.warnings:
+        print(for_terminal(f"bench replay: WARNING: {w}"), file=sys.stderr)
+    return replay

@@ -49,6 +49,29 @@ def score_files(recordings: list[str | Path], case_file: str | Path | None = Non
     return [judge_case(c, runs) for c, runs in groups.values()]
 
 
+def _need_cases(recordings: list[str]) -> None:
+    """Refuse (exit 2, saying how to judge it) a recording that carries no test case: a
+    replay with ``--estimator`` or ``--dut-command`` has no criteria of its own."""
+    from bench.errors import ConfigError
+    from bench.record.mcap_io import RecordingReader
+
+    for rec in recordings:
+        try:
+            with RecordingReader(rec) as r:
+                names = list(r.attachments())
+                start = r.metadata().get("run_start", {})
+        except Exception:  # an unreadable recording: the scoring below names what is wrong with it
+            continue
+        if any(n.startswith("case/") for n in names):
+            continue
+        what = ("a replay of field logs" if start.get("replay_mode") == "field logs"
+                else "a replay" if start.get("replay_mode") else "a recording")
+        raise ConfigError(
+            f"{what} without a test case (made with --estimator or --dut-command): there are no criteria to judge it "
+            f"by. Give them: bench score {rec} --case CASE.toml (the case's criteria and scoring; its DUT, scenario "
+            "and sensors are not used), or replay with --case CASE.toml, which attaches the case", file=rec)
+
+
 def _run(args: argparse.Namespace) -> int:
     from bench.cli.accept import exit_code
     from bench.report.junit import write_junit
@@ -56,6 +79,8 @@ def _run(args: argparse.Namespace) -> int:
     from bench.report.table import text_table
     from bench.textsafe import for_terminal
 
+    if args.case is None:
+        _need_cases(args.recordings)
     results = score_files(args.recordings, args.case)
     print(text_table(results))
     if args.verbose:

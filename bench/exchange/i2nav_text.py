@@ -32,6 +32,7 @@ from bench.errors import ConfigError
 
 __all__ = [
     "rfu_to_frd",
+    "frd_to_rfu",
     "enu_to_ned",
     "write_columns",
     "nav_rows",
@@ -53,6 +54,12 @@ def rfu_to_frd(v: np.ndarray) -> np.ndarray:
     """Body vectors (..., 3) from right-forward-up to forward-right-down."""
     v = np.asarray(v, dtype=float)
     return np.stack([v[..., 1], v[..., 0], -v[..., 2]], axis=-1)
+
+
+def frd_to_rfu(v: np.ndarray) -> np.ndarray:
+    """Body vectors (..., 3) from forward-right-down to right-forward-up (the inverse of
+    :func:`rfu_to_frd`, which is its own inverse)."""
+    return rfu_to_frd(v)
 
 
 def enu_to_ned(v: np.ndarray) -> np.ndarray:
@@ -203,10 +210,12 @@ def _parse(block: list[tuple[int, list[bytes]]], names: Sequence[str], file: str
     return rows, np.asarray(numbers, dtype=np.int64)
 
 
-def iter_table(path: str | Path, names: Sequence[str], *, what: str) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+def iter_table(path: str | Path, names: Sequence[str], *, what: str,
+               header_lines: int = 0) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """Blocks of a whitespace-separated numeric text file whose first ``len(names)`` columns
     are ``names`` (more columns are ignored; ``#`` and ``%`` start comments, blank lines are
-    skipped): an (n, len(names)) float array and the (n,) line numbers (from 1) the rows
+    skipped; the first ``header_lines`` lines are skipped whatever they hold): an
+    (n, len(names)) float array and the (n,) line numbers (from 1) the rows
     come from, for messages about them; at most :data:`BLOCK_ROWS` lines a block, so the
     file is never held whole.
 
@@ -216,15 +225,17 @@ def iter_table(path: str | Path, names: Sequence[str], *, what: str) -> Iterator
     most :data:`NAV_FILE_LIMIT` bytes.
     """
     for first, lines in _lines(path, what):
-        rows, numbers = _parse(list(enumerate(lines, start=first)), names, str(path))
+        block = [(n, ln) for n, ln in enumerate(lines, start=first) if n > header_lines]
+        rows, numbers = _parse(block, names, str(path))
         if len(rows):
             yield rows, numbers
 
 
-def read_table(path: str | Path, names: Sequence[str], *, what: str) -> tuple[np.ndarray, np.ndarray]:
+def read_table(path: str | Path, names: Sequence[str], *, what: str,
+               header_lines: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """The whole of :func:`iter_table` (for small files): rows and line numbers; a file with
     no data line is a :class:`ConfigError`."""
-    blocks = list(iter_table(path, names, what=what))
+    blocks = list(iter_table(path, names, what=what, header_lines=header_lines))
     if not blocks:
         raise ConfigError(f"no data line in the {what}", file=str(path))
     return np.concatenate([b[0] for b in blocks]), np.concatenate([b[1] for b in blocks])

@@ -121,7 +121,8 @@ def imu_log_chunks(data: bytes, *, file: str, shift_ns: int = 0) -> tuple[Serial
     if starts.size == 0:
         raise ConfigError(
             f"no ICD IMU frame (AA 55, length 36, CRC-16 over bytes 2..39) in {buf.size} bytes: "
-            f"not a byte log of the imu line; found {describe(data)}",
+            f"not a byte log of the imu line; found {describe(data)}; IMU logs of other formats are read with "
+            "--imu-format psins, kfgins, gnss-ins-sim or declared (a TOML beside the log; docs/exchange.md)",
             file=file,
         )
     rows = buf[starts[:, None] + _OFFS]

@@ -26,7 +26,7 @@ from bench.errors import ConfigError
 from bench.record.mcap_io import RecordingWriter
 from bench.run.source import SEGMENTS_TOPIC, time_grid
 from bench.scenario.records import TRUTH_TOPIC, truth_records
-from bench.scenario.track import SampledTrajectory, read_track
+from bench.scenario.track import SampledTrajectory, Track, read_track
 from bench.scenario.trajectory import truth_at
 
 __all__ = ["TruthTrack", "TruthWriter", "TRUTH_TIMES"]
@@ -56,6 +56,10 @@ class TruthTrack:
         summarizes its report).
     rate_hz:
         Rate of the ``/truth`` records.
+    samples:
+        The track already read (a format read elsewhere, e.g. a KF-GINS ``truth.nav`` by
+        :mod:`bench.exchange.field_logs`, its times in seconds as ``time`` says); None:
+        read ``path`` as ``format``.
     """
 
     path: Path
@@ -64,6 +68,7 @@ class TruthTrack:
     offset_ns: int = 0
     smoothing: float = 0.0
     rate_hz: float = 100.0
+    samples: Track | None = None
 
 
 class TruthWriter:
@@ -88,7 +93,7 @@ class TruthWriter:
         if not path.is_file():
             raise ConfigError("truth track not found", file=str(path))
         self.track = track
-        samples = read_track(path, track.format).cleaned()
+        samples = (track.samples if track.samples is not None else read_track(path, track.format)).cleaned()
         base = -epoch_ns if track.time == "utc" else 0
         #: Bench time of the trajectory's time zero (the track's first sample), ns.
         self.zero_ns = round(float(samples.t[0]) * 1e9) + base + track.offset_ns

@@ -72,6 +72,15 @@ class FieldLogs:
         re-stamped and their CRC recomputed when not 0).
     gnss_latency_ns:
         Time from an NMEA epoch's measurement (its UTC time field) to its sentences on the line.
+    imu_data, gnss_data:
+        The lines' bytes converted from a log in another format (:mod:`bench.exchange.field_logs`);
+        None: the file is the line's bytes.
+    imu_format, gnss_format:
+        The format of the files (``icd``/``nmea`` or what they were converted from).
+    epoch_rule:
+        How ``epoch_ns`` was found when the logs' own times gave it (None: ``--epoch``).
+    figures:
+        Figures of the conversion, kept in ``log_figures``.
     """
 
     can: Path | None = None
@@ -83,6 +92,12 @@ class FieldLogs:
     can_channel: int | None = None
     imu_shift_ns: int = 0
     gnss_latency_ns: int = 0
+    imu_data: bytes | None = None
+    gnss_data: bytes | None = None
+    imu_format: str = "icd"
+    gnss_format: str = "nmea"
+    epoch_rule: str | None = None
+    figures: dict[str, object] | None = None
 
     def files(self) -> dict[str, Path]:
         """The logs given, by kind."""
@@ -93,6 +108,18 @@ def _read_bytes(path: Path, what: str) -> bytes:
     from bench.config.files import read_bytes  # a regular file of at most 1 GiB
 
     return read_bytes(path, what=what)
+
+
+def _digest(path: Path) -> str:
+    """SHA-256 of a log file; of a folder of logs (gnss-ins-sim output), of its files' names and
+    digests in name order."""
+    if path.is_dir():
+        h = hashlib.sha256()
+        for f in sorted(q for q in path.iterdir() if q.is_file()):
+            h.update(f"{f.name}\0{_digest(f)}\n".encode())
+        return h.hexdigest()
+    with path.open("rb") as fh:
+        return hashlib.file_digest(fh, "sha256").hexdigest()
 
 
 class LogReplay(TrafficProvider):
@@ -128,7 +155,8 @@ class LogReplay(TrafficProvider):
         self.lockstep = lockstep
         self.start_ns = int(start_ns)
         self.seed = seed
-        self.facts: dict[str, object] = {}  # figures of the logs
+        self.facts: dict[str, object] = dict(logs.figures or {})  # figures of the logs
+        self.warnings: list[str] = []  # what the user must be told (an assumed epoch)
         self.placement: dict[str, str] = {}  # how they were placed in bench time
         if not logs.files():
             raise ConfigError("a field-log replay needs at least one log: --can-log, --imu-log or --gnss-log")
@@ -148,7 +176,9 @@ class LogReplay(TrafficProvider):
         can, logged_epochs = self._can() if logs.can else (CanBatch.empty(), np.zeros(0, np.int64))
         imu = self._imu() if logs.imu else SerialBatch.empty()
         self.imu_rate = measure_stream(imu, source=str(logs.imu))  # refuses a rate change; bench.run.imu_rate
-        nmea = read_nmea_log(_read_bytes(logs.gnss, "NMEA byte log"), file=str(logs.gnss)) if logs.gnss else None
+        gnss_bytes = logs.gnss_data if logs.gnss_data is not None else (
+            _read_bytes(logs.gnss, "NMEA byte log") if logs.gnss else None)
+        nmea = read_nmea_log(gnss_bytes, file=str(logs.gnss)) if gnss_bytes is not None else None
         self.epoch_ns, self.epoch_source = self._epoch(logged_epochs, can, imu, nmea)
         gnss = self._gnss(nmea) if nmea is not None else SerialBatch.empty()
         last = max([int(b.t_ns[-1]) for b in (can, imu, gnss) if len(b)], default=0)
@@ -205,7 +235,8 @@ class LogReplay(TrafficProvider):
     def _imu(self) -> SerialBatch:
         path = self.logs.imu
         assert path is not None
-        batch, info = imu_log_chunks(_read_bytes(path, "IMU byte log"), file=str(path), shift_ns=self.logs.imu_shift_ns)
+        data = self.logs.imu_data if self.logs.imu_data is not None else _read_bytes(path, "IMU byte log")
+        batch, info = imu_log_chunks(data, file=str(path), shift_ns=self.logs.imu_shift_ns)
         self.facts["imu"] = info
         return batch
 
@@ -223,7 +254,7 @@ class LogReplay(TrafficProvider):
                 )
             return epoch, "BENCH_EPOCH frames of the CAN log"
         if given is not None:
-            return (given + _MS // 2) // _MS * _MS, "given (--epoch)"
+            return (given + _MS // 2) // _MS * _MS, self.logs.epoch_rule or "given (--epoch)"
         if nmea is not None:
             first_utc = int(nmea.epoch_utc_ns(None)[0])
             ref, what = (
@@ -234,7 +265,11 @@ class LogReplay(TrafficProvider):
                 else (0, "bench time zero")
             )
             return (first_utc - ref) // _MS * _MS, f"first NMEA epoch placed at {what} (bench time {ref / 1e9:g} s)"
-        return parse_epoch(DEFAULT_EPOCH), f"default {DEFAULT_EPOCH} (no BENCH_EPOCH, no NMEA, none given)"
+        self.warnings.append(
+            f"the logs carry no date (no BENCH_EPOCH, no NMEA, no --epoch): bench time zero is ASSUMED to be "
+            f"{DEFAULT_EPOCH}, the bench's default epoch; the DUT's BENCH_EPOCH and every UTC of the replay are made "
+            "up. Give --epoch (the UTC of the log's start)")
+        return parse_epoch(DEFAULT_EPOCH), f"ASSUMED: default {DEFAULT_EPOCH} (no BENCH_EPOCH, no NMEA, none given)"
 
     def _gnss(self, nmea: NmeaLog) -> SerialBatch:
         utc = nmea.epoch_utc_ns(self.epoch_ns)[nmea.epoch_of]
@@ -256,14 +291,15 @@ class LogReplay(TrafficProvider):
             "replay_mode": "field logs",
             "duration_s": f"{self.duration_ns / 1e9:.9g}",
             "epoch_source": self.epoch_source,
+            "imu_format": self.logs.imu_format if self.logs.imu else "",
+            "gnss_format": self.logs.gnss_format if self.logs.gnss else "",
             "gnss_latency_s": f"{self.logs.gnss_latency_ns / 1e9:g}",
             "imu_shift_s": f"{self.logs.imu_shift_ns / 1e9:g}",
             "log_figures": json.dumps(self.facts),
         }
         for kind, p in files.items():
             out[f"{kind}_log"] = str(p)
-            with p.open("rb") as fh:
-                out[f"{kind}_log_sha256"] = hashlib.file_digest(fh, "sha256").hexdigest()
+            out[f"{kind}_log_sha256"] = _digest(p)
         out.update(self.placement)
         if self.windows:
             out["seed"] = str(self.seed)

@@ -99,6 +99,8 @@ class NoiseReport:
     mean_rate: float = 0.0  # |mean angular rate|, rad/s
     mean_force: float = 0.0  # |mean specific force|, m/s^2
     gravity: float = G0  # what the log's place expects, m/s^2
+    gravity_basis: str = "standard gravity: the log states no latitude"
+    unit_g: float | None = None  # the g of the log's accelerometer unit (PSINS header), m/s^2
 
     @property
     def gyro_curves(self) -> list[AllanResult]:
@@ -122,9 +124,12 @@ class NoiseReport:
         lines = [
             f"{self.source}: {self.duration_s:.0f} s of data, {self.samples} samples at {1.0 / self.dt:g} Hz",
             f"mean rate {to_unit(self.mean_rate, 'deg/h'):.2f} deg/h (Earth rate "
-            f"{to_unit(earth.OMEGA_IE, 'deg/h'):.2f}), mean specific force {self.mean_force:.4f} m/s^2 (gravity "
-            f"{self.gravity:.4f})",
+            f"{to_unit(earth.OMEGA_IE, 'deg/h'):.2f}), mean specific force {self.mean_force:.4f} m/s^2 (expected "
+            f"{self.gravity:.4f}, {self.gravity_basis})",
         ]
+        if self.unit_g is not None:
+            lines.append(f"accelerometer LSB unit: ug*s of g = {self.unit_g:.6f} m/s^2 (the header's scale constant, "
+                         "line 2 field 6; not the local gravity)")
         for a in self.axes:
             f = a.fit
             mean_unit = UNITS[a.sensor][5]
@@ -211,13 +216,21 @@ def _tilt_motion(log: ImuLog) -> tuple[float, float, float] | None:
 def _static_checks(log: ImuLog, rep: NoiseReport) -> None:
     f_mean = log.dvel.sum(axis=0) / (len(log.dvel) * log.dt)
     w_mean = log.dtheta.sum(axis=0) / (len(log.dtheta) * log.dt)
-    g_ref = log.g or (float(earth.gravity(log.lat, 0.0)) if log.lat is not None else G0)
+    if log.lat is not None:
+        h = log.h if log.h is not None else 0.0
+        g_ref = float(earth.gravity(log.lat, h))
+        rep.gravity_basis = (f"normal gravity at the log's latitude {math.degrees(log.lat):.4f} deg, height {h:g} m"
+                             + ("" if log.h is not None else " (assumed)"))
+    else:
+        g_ref = G0
+    rep.unit_g = log.g
     f = float(np.linalg.norm(f_mean))
     w = float(np.linalg.norm(w_mean))
     rep.mean_rate, rep.mean_force, rep.gravity = w, f, g_ref
     if abs(f / g_ref - 1.0) > 0.01:
         rep.warnings.append(
-            f"mean specific force {f:.4f} m/s^2 is {100 * (f / g_ref - 1):+.1f} % from gravity {g_ref:.4f} m/s^2: "
+            f"mean specific force {f:.4f} m/s^2 is {100 * (f / g_ref - 1):+.1f} % from the expected gravity "
+            f"{g_ref:.4f} m/s^2: "
             "the unit accelerated or is not an IMU at rest, or its accelerometer scale or bias is that far off")
     if w > 3.0 * earth.OMEGA_IE:
         rep.warnings.append(

@@ -35,7 +35,9 @@ class ImuLog:
     """Increments of a logged IMU: (N, 3) rad and m/s, interval ``dt`` (s).
 
     ``gyro_lsb`` and ``accel_lsb`` are the output resolutions (rad, m/s per axis) when
-    the file states them; ``g`` the local gravity the file states (m/s^2).
+    the file states them; ``g`` the g of the accelerometer's unit the file states (PSINS:
+    the header's scale constant, which turns its ug*s LSB into m/s; not the local
+    gravity, which follows from ``lat`` and ``h``); ``h`` the height (m) the file states.
     """
 
     dtheta: np.ndarray
@@ -47,6 +49,7 @@ class ImuLog:
     accel_lsb: np.ndarray | None = None
     g: float | None = None
     irregular: int = 0  # sampling intervals that differ from ``dt`` (recordings)
+    h: float | None = None
 
 
 def _describe_bytes(head: bytes) -> str:
@@ -95,7 +98,8 @@ def read_psins_imu(path: str | Path) -> ImuLog:
         text = read_bytes(path, what=_WHAT, limit=MAX_TEXT_BYTES).decode("utf-8")
     except UnicodeDecodeError:
         raise ConfigError("not UTF-8 text; expected a PSINS .imu text log", file=file) from None
-    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("%")]
+    numbered = [(n, ln) for n, ln in enumerate(text.splitlines(), 1) if ln.strip() and not ln.lstrip().startswith("%")]
+    lines = [ln for _, ln in numbered]
     if len(lines) < 4:
         raise ConfigError(
             f"not a PSINS IMU log: expected three parameter lines and samples after the % header, found "
@@ -103,7 +107,7 @@ def read_psins_imu(path: str | Path) -> ImuLog:
     try:
         p2 = [float(v) for v in lines[1].split()]
         p3 = [float(v) for v in lines[2].split()]
-        lat_deg, interval_ms, g = p2[0], p2[4], p2[5]
+        lat_deg, h, interval_ms, g = p2[0], p2[2], p2[4], p2[5]
         gyro_arcsec, acc_ugs = np.array(p3[0:3]), np.array(p3[3:6])
         if len(p3) < 6:
             raise IndexError
@@ -116,7 +120,9 @@ def read_psins_imu(path: str | Path) -> ImuLog:
         (math.isfinite(lat_deg) and abs(lat_deg) <= 90.0, "latitude (line 2, field 1) within +-90 deg", lat_deg),
         (math.isfinite(interval_ms) and 0.0 < interval_ms <= 1000.0, "sampling interval (line 2, field 5) within "
          "(0, 1000] ms", interval_ms),
-        (math.isfinite(g) and 9.7 < g < 9.9, "gravity (line 2, field 6) within 9.7..9.9 m/s^2", g),
+        (math.isfinite(g) and 9.7 < g < 9.9, "g of the accelerometer unit (line 2, field 6) within 9.7..9.9 m/s^2",
+         g),
+        (math.isfinite(h) and abs(h) < 1e5, "height (line 2, field 3) within +-100 km", h),
         (bool(np.all(np.isfinite(gyro_arcsec)) and np.all(gyro_arcsec > 0)), "gyro LSB (line 3) positive",
          list(gyro_arcsec)),
         (bool(np.all(np.isfinite(acc_ugs)) and np.all(acc_ugs > 0)), "accel LSB (line 3) positive", list(acc_ugs)),
@@ -127,13 +133,21 @@ def read_psins_imu(path: str | Path) -> ImuLog:
     try:
         data = np.loadtxt(lines[3:], dtype=float, ndmin=2)
     except ValueError as exc:
+        for n, ln in numbered[3:]:
+            parts = ln.split()
+            try:
+                if len(parts) != 6 or not all(math.isfinite(float(v)) for v in parts):
+                    raise ValueError
+            except ValueError:
+                raise ConfigError(f"line {n}: expected six numbers (a sample), found {ln.strip()[:60]!r}",
+                                  file=file) from None
         raise ConfigError(f"samples are not six numbers per line: {exc}", file=file) from None
     if data.shape[1] != 6:
         raise ConfigError(f"expected six columns per sample, found {data.shape[1]}", file=file)
     gyro_lsb = np.radians(gyro_arcsec / 3600.0)
     acc_lsb = acc_ugs * 1e-6 * g
     log = ImuLog(data[:, 0:3] * gyro_lsb, data[:, 3:6] * acc_lsb, interval_ms * 1e-3, math.radians(lat_deg), file,
-                 gyro_lsb, acc_lsb, g)
+                 gyro_lsb, acc_lsb, g, h=h)
     check_log(log)
     return log
 
