@@ -45,8 +45,9 @@ DUT_KINDS = ("synthetic", "in_process", "external", "hardware", "batch")
 
 @dataclass(frozen=True)
 class ScenarioRef:
-    """Where the motion comes from: a scenario file (motion script or track), or an FMU
-    with its driver script. Paths are resolved against the case file's folder."""
+    """Where the motion comes from: a scenario file (motion script or track), an FMU with
+    its driver script, or field logs of a real drive (``log``). Paths are resolved against
+    the case file's folder."""
 
     script: str | None = None
     fmu: str | None = None
@@ -54,6 +55,9 @@ class ScenarioRef:
     vehicle: str | None = None
     duration_s: float | None = None
     base: Path | None = None
+    #: ``[scenario] log``: field logs replayed instead of a synthesized drive (the
+    #: ``bench replay`` options of the same names; paths as written, relative to the case)
+    log: Mapping[str, Any] | None = None
 
     def resolve(self, ref: str | None) -> Path | None:
         """A path of this table made absolute (relative to the case file)."""

@@ -114,6 +114,9 @@ def build_case(
 
     scenario = _scenario(top.table("scenario", required=True), base, check_files)  # type: ignore[arg-type]
     sensors = _sensors(top.table("sensors"), check_files)
+    if scenario.log is not None and sensors:
+        raise ConfigError("a case built on field logs ([scenario] log) takes its sensors' data from the logs: "
+                          "remove [sensors]", file=file, key="sensors")
     _load_fault_kinds()
     faults = parse_schedule(top.raw("fault"), file=file, key="fault")
     fault_files = top.str_list("fault_files", allow_single=False)
@@ -163,9 +166,15 @@ def _scenario(t: Table, base: Path | None, check_files: bool) -> ScenarioRef:
     driver = t.str("driver")
     vehicle = t.str("vehicle")
     duration = t.quantity("duration", "time", "s", positive=True, bound="duration")
+    log_table = t.table("log")
     t.finish()
-    if (script is None) == (fmu is None):
-        raise t.error("script", "expected either 'script' (a motion script or track) or 'fmu' with 'driver'")
+    if sum(x is not None for x in (script, fmu, log_table)) != 1:
+        raise t.error("script", "expected exactly one of 'script' (a motion script or track), 'fmu' with 'driver', "
+                      "or 'log' (field logs of a real drive)")
+    if log_table is not None:
+        if duration is not None:
+            raise t.error("duration", "a case built on field logs runs the whole log")
+        return ScenarioRef(None, None, None, None, duration, base, log=_log_source(log_table, base, check_files))
     if fmu is not None and driver is None:
         raise t.error("driver", "missing field; an FMU scenario needs a driver script")
     if script is not None and (driver is not None or vehicle is not None):
@@ -192,6 +201,40 @@ def _scenario(t: Table, base: Path | None, check_files: bool) -> ScenarioRef:
             if p is not None:
                 regular_file(p, what=f"{name} file")
     return ref
+
+
+#: ``[scenario] log`` keys naming files (resolved against the case file)
+LOG_FILES = ("imu", "gnss", "can", "truth")
+
+
+def _log_source(t: Table, base: Path | None, check_files: bool) -> dict[str, Any]:
+    """``[scenario] log``: the field logs of a drive and how to read them, as ``bench
+    replay`` takes them (docs/test_cases.md, "[scenario]"); checked here, read by the run."""
+    out: dict[str, Any] = {}
+    for name in LOG_FILES:
+        value = t.str(name)
+        if value is not None:
+            out[name] = value
+    out["imu_format"] = t.str("imu_format", choices=("icd", "psins", "kfgins", "gnss-ins-sim", "declared"))
+    out["gnss_format"] = t.str("gnss_format", choices=("nmea", "kfgins"))
+    out["truth_format"] = t.str("truth_format", "smartloc", choices=("smartloc", "csv", "kfgins"))
+    out["truth_time"] = t.str("truth_time", "bench", choices=("bench", "utc"))
+    out["epoch"] = t.str("epoch")
+    out["gps_week"] = t.int("gps_week", minimum=0, maximum=9999)
+    rate = t.quantity("imu_rate", "frequency", "Hz", positive=True, bound="imu_rate")
+    out["imu_rate_hz"] = rate
+    t.finish()
+    if not any(name in out for name in ("imu", "gnss", "can")):
+        raise t.error("imu", "expected at least one log: 'imu', 'gnss' or 'can'")
+    if check_files:
+        for name in LOG_FILES:
+            if name in out:
+                p = Path(out[name])
+                p = p if p.is_absolute() or base is None else (base / p).resolve()
+                if not p.exists():
+                    raise t.error(name, f"file not found: {p}")
+                regular_file(p, what=f"{name} log" if name != "truth" else "truth file")
+    return out
 
 
 def _check_imu(params: Mapping[str, Any], file: str, key: str) -> None:

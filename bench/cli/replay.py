@@ -204,53 +204,18 @@ def _say_source(provider, quiet: bool) -> None:
 
 
 def _log_replay(args: argparse.Namespace, lockstep: bool, faults):
-    from bench.run.logreplay import FieldLogs, LogReplay, TruthTrack
-    from bench.runinfo import parse_epoch
-    from bench.units import quantity
-
-    def ns(text: str | None, key: str) -> int | None:
-        return None if text is None else round(quantity(text, "time", "s", key=key) * 1e9)
-
-    from bench.exchange.field_logs import convert_field_logs
+    from bench.run.fieldopen import FieldLogOptions, open_field_logs
     from bench.textsafe import for_terminal
 
-    given_epoch = parse_epoch(args.epoch, key="--epoch") if args.epoch else None
-    conv = convert_field_logs(
-        Path(args.imu_log) if args.imu_log else None, Path(args.gnss_log) if args.gnss_log else None,
-        imu_format=args.imu_format, gnss_format=args.gnss_format, epoch_ns=given_epoch, gps_week=args.gps_week,
-        truth=Path(args.truth) if args.truth else None, truth_format=args.truth_format)
-    for what, fmt in (("IMU", conv.imu_format), ("GNSS", conv.gnss_format)):
-        if fmt and fmt not in ("icd", "nmea") and not args.quiet:
-            print(f"bench replay: the {what} log is read as {fmt} and converted to the line's bytes", file=sys.stderr)
-    for w in conv.warnings:
-        print(for_terminal(f"bench replay: WARNING: {w}"), file=sys.stderr)
-    logs = FieldLogs(
-        can=Path(args.can_log) if args.can_log else None,
-        imu=Path(args.imu_log) if args.imu_log else None,
-        gnss=Path(args.gnss_log) if args.gnss_log else None,
-        epoch_ns=conv.epoch_ns if conv.epoch_ns is not None else given_epoch,
-        can_offset_ns=ns(args.can_offset, "--can-offset"),
-        can_ids=args.can_ids,
-        can_channel=args.can_channel,
-        imu_shift_ns=ns(args.imu_shift, "--imu-shift") or 0,
-        gnss_latency_ns=ns(args.gnss_latency, "--gnss-latency") or 0,
-        imu_data=conv.imu_data,
-        gnss_data=conv.gnss_data,
-        imu_format=conv.imu_format or "icd",
-        gnss_format=conv.gnss_format or "nmea",
-        epoch_rule=conv.epoch_rule,
-        figures=conv.figures,
-    )
-    truth = None
-    if args.truth:
-        truth = TruthTrack(Path(args.truth), format=args.truth_format, time=args.truth_time,
-                           offset_ns=ns(args.truth_offset, "--truth-offset") or 0,
-                           smoothing=quantity(args.truth_smoothing, "length", "m", key="--truth-smoothing"),
-                           samples=conv.truth)
-        if conv.truth is not None:
-            truth.time = "bench"
-    replay = LogReplay(logs, lockstep=lockstep, truth=truth, faults=faults, seed=args.seed,
-                       start_ns=round(args.start * 1e9))
-    for w in replay.warnings:
-        print(for_terminal(f"bench replay: WARNING: {w}"), file=sys.stderr)
-    return replay
+    def path(value: str | None) -> Path | None:
+        return Path(value) if value else None
+
+    opts = FieldLogOptions(
+        can_log=path(args.can_log), imu_log=path(args.imu_log), imu_format=args.imu_format,
+        gnss_log=path(args.gnss_log), gnss_format=args.gnss_format, epoch=args.epoch, gps_week=args.gps_week,
+        can_offset=args.can_offset, can_ids=args.can_ids, can_channel=args.can_channel, imu_shift=args.imu_shift,
+        gnss_latency=args.gnss_latency, truth=path(args.truth), truth_format=args.truth_format,
+        truth_time=args.truth_time, truth_offset=args.truth_offset, truth_smoothing=args.truth_smoothing,
+        seed=args.seed, start_s=args.start)
+    return open_field_logs(opts, lockstep=lockstep, faults=faults, quiet=args.quiet,
+                           say=lambda text: print(for_terminal(f"bench replay: {text}"), file=sys.stderr))

@@ -24,12 +24,13 @@ from bench.acceptance.runner import (
 )
 from bench.clock.pacing import TimingBudget
 from bench.errors import ConfigError
-from bench.run.engine import RunResult, run
+from bench.run.engine import RunResult, execute, run
+from bench.run.fieldopen import FieldLogOptions, open_field_logs
 from bench.run.spec import ClockSpec, DutSpec, LinkSpec, RunSpec
 from bench.run.traffic import COMMAND_CODES
 from bench.scenario.loader import Scenario, load_scenario
 
-__all__ = ["EngineRunner", "spec_from_case"]
+__all__ = ["EngineRunner", "spec_from_case", "log_options", "run_log_case"]
 
 
 def _scenario(case: TestCase) -> Scenario:
@@ -70,28 +71,16 @@ def spec_from_case(case: TestCase, seed: int, out_dir: Path) -> RunSpec:
     """The run of ``case`` (one variant, already selected) with ``seed``."""
     scenario = _scenario(case)
     dut = case.dut
-    config = dict(dut.config)
-    if dut.config_file:
-        config.setdefault("config_file", str(case.scenario.resolve(dut.config_file)))
-    clock = ClockSpec(
-        mode=case.clock.mode,
-        step_ns=case.clock.step_ns,
-        timeout_s=case.clock.timeout_ns / 1e9,
-        speed=case.clock.speed,
-        budget=_budget(case),
-    )
-    base = case.path.resolve().parent if case.path is not None else None
     return RunSpec(
         scenario=scenario,
         tables=sensor_tables(case, scenario.doc),
         schedule=case.faults,
-        dut=DutSpec(kind=dut.kind, name=dut.name, command=dut.command, config=config,
-                    startup_timeout_s=dut.startup_timeout_s, shutdown_timeout_s=dut.shutdown_timeout_s, cwd=base),
+        dut=_dut(case),
         out=Path(out_dir) / recording_name(case, seed),
         seed=seed,
         commands=[(c.t_ns, COMMAND_CODES[c.command]) for c in case.commands],
         links=_links({k: dict(v) for k, v in dut.links.items()}),
-        clock=clock,
+        clock=_clock(case),
         truth_rate_hz=case.run.truth_rate_hz,
         duration_ns=round(case.scenario.duration_s * 1e9) if case.scenario.duration_s is not None else None,
         run_start=run_start_metadata(case, seed, f"engine/{dut.kind}"),
@@ -99,13 +88,68 @@ def spec_from_case(case: TestCase, seed: int, out_dir: Path) -> RunSpec:
     )
 
 
+def _clock(case: TestCase) -> ClockSpec:
+    return ClockSpec(
+        mode=case.clock.mode,
+        step_ns=case.clock.step_ns,
+        timeout_s=case.clock.timeout_ns / 1e9,
+        speed=case.clock.speed,
+        budget=_budget(case),
+    )
+
+
+def _dut(case: TestCase) -> DutSpec:
+    dut = case.dut
+    config = dict(dut.config)
+    if dut.config_file:
+        config.setdefault("config_file", str(case.scenario.resolve(dut.config_file)))
+    base = case.path.resolve().parent if case.path is not None else None
+    return DutSpec(kind=dut.kind, name=dut.name, command=dut.command, config=config,
+                   startup_timeout_s=dut.startup_timeout_s, shutdown_timeout_s=dut.shutdown_timeout_s, cwd=base)
+
+
+def log_options(case: TestCase, seed: int) -> FieldLogOptions:
+    """The ``bench replay`` options of a case built on field logs (``[scenario] log``)."""
+    log = case.scenario.log
+    assert log is not None
+
+    def path(name: str) -> Path | None:
+        return case.scenario.resolve(log[name]) if name in log else None
+
+    return FieldLogOptions(
+        can_log=path("can"), imu_log=path("imu"), imu_format=log.get("imu_format"), gnss_log=path("gnss"),
+        gnss_format=log.get("gnss_format"), epoch=log.get("epoch"), gps_week=log.get("gps_week"),
+        truth=path("truth"), truth_format=log.get("truth_format") or "smartloc",
+        truth_time=log.get("truth_time") or "bench", seed=seed, key_prefix="scenario.log.")
+
+
+def run_log_case(case: TestCase, seed: int, out_dir: Path, progress: Progress | None = None) -> RunResult:
+    """One run of a case built on field logs: the logs replayed into the case's DUT as
+    ``bench replay --case`` does, the case attached so that ``bench score`` judges it."""
+    from bench.run.imu_rate import check_replay
+
+    clock = _clock(case)
+    notes: list[str] = []
+    provider = open_field_logs(log_options(case, seed), lockstep=clock.lockstep,
+                               faults=case.faults if len(case.faults) else None, say=notes.append, quiet=True)
+    check_replay(provider, None, case)  # the log at the rate the case declares, if it does
+    meta = run_start_metadata(case, seed, f"engine/{case.dut.kind}", field_log_notes=notes)
+    return execute(provider, _dut(case), _links({k: dict(v) for k, v in case.dut.links.items()}), clock,
+                   Path(out_dir) / recording_name(case, seed), run_start=meta, attachments=case_attachments(case),
+                   progress=progress)
+
+
 class EngineRunner:
-    """The run engine as an acceptance runner (DUT kinds ``in_process``, ``external`` and ``hardware``)."""
+    """The run engine as an acceptance runner (DUT kinds ``in_process``, ``external`` and
+    ``hardware``), for synthesized drives and for cases built on field logs."""
 
     last: RunResult | None = None
 
     def run(self, case: TestCase, seed: int, out_dir: Path, *, progress: Progress | None = None) -> Path:
         """One run of ``case``; the recording says how it ended."""
-        result = run(spec_from_case(case, seed, Path(out_dir)), progress)
+        if case.scenario.log is not None:
+            result = run_log_case(case, seed, Path(out_dir), progress)
+        else:
+            result = run(spec_from_case(case, seed, Path(out_dir)), progress)
         self.last = result
         return result.path

@@ -162,10 +162,14 @@ def require_rate(measured: ImuRate | None, declared_hz: float | None, *, file: s
         )
 
 
-def case_rate(case: Any) -> tuple[float, str, str]:
+def case_rate(case: Any) -> tuple[float | None, str, str]:
     """The IMU rate a test case declares, with the file and key that declare it: its
     ``[sensors] imu`` table merged over its scenario's ``[imu]`` as a synthetic run of the
-    case takes them (200 Hz when neither says)."""
+    case takes them (200 Hz when neither says); for a case built on field logs, its
+    ``[scenario] log`` table's ``imu_rate`` (None when not given: the log's own rate)."""
+    log = getattr(case.scenario, "log", None)
+    if log is not None:
+        return log.get("imu_rate_hz"), case.file, "scenario.log.imu_rate"
     from bench.acceptance.runner import sensor_tables
     from bench.run.case_runner import _scenario
     from bench.run.source import imu_settings

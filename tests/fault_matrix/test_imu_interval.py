@@ -206,10 +206,10 @@ def test_the_real_100_hz_laser_gyro_log_at_the_default_step_aligns_and_holds(fol
     drift of kilometres; now the heading of the log's header (PSINS yaw -90.6 deg, counted
     to the west: 90.6 deg), the levelling of its mean specific force, the point held."""
     lat, lon, h, pitch, roll = _psins_to_icd(PSINS, folder / "psins.bin")
-    (folder / "psins.toml").write_text(f"initial_position = [{lat}, {lon}, {h}]\n")
+    (folder / "dut_config.toml").write_text(f"initial_position = [{lat}, {lon}, {h}]\n")
     out = folder / "psins.mcap"
     bench("replay", "--imu-log", str(folder / "psins.bin"), "--estimator", "seed000",
-          "--dut-config", str(folder / "psins.toml"), "-o", str(out), "-q", "--force", cwd=folder, expect=0)
+          "--dut-config", str(folder / "dut_config.toml"), "-o", str(out), "-q", "--force", cwd=folder, expect=0)
     s = _solution(out)
     t = s["t_ns"] * 1e-9
     assert t[-1] >= 599.9

@@ -282,7 +282,7 @@ def test_row_score_of_a_field_log_replay_with_truth_judges_it_or_says_how(tmp_pa
     judged (exit 0 or 1); an --estimator replay exits 2 saying how to give the criteria,
     and with --case it is judged."""
     imu = tmp_path / "imu.bin"
-    _static_icd(imu)
+    _static_icd(imu, rate=200)  # the case's synthetic drive declares 200 Hz (a replay at another rate is refused)
     truth = tmp_path / "truth.csv"
     truth.write_text("t,lat,lon,h,heading,pitch,roll\n" + "".join(f"{k},30.0,110.0,50.0,0,0,0\n" for k in range(31)))
     case = tmp_path / "case.toml"
