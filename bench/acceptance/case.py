@@ -180,6 +180,7 @@ class TestCase:
         v = self.dut.variants[name]
         dut = replace(
             self.dut,
+            name=v.get("name") or self.dut.name,
             config=merge_tables(self.dut.config, v.get("config", {})),
             synthetic=v.get("_synthetic", self.dut.synthetic),
         )

@@ -455,8 +455,13 @@ def _dut(t: Table, base: Path | None, check_files: bool) -> DutSpec:
                 raise vt.error("config", f"expected a table, found {type_name(vconfig)}")
             vsyn = vt.raw("synthetic", None)
             vdesc = vt.str("description", "")
+            vname_est = vt.str("name")
             vt.finish()
             entry: dict[str, Any] = {"config": expand_case_dir(vconfig, base), "description": vdesc}
+            if vname_est is not None:
+                if kind != "in_process":
+                    raise vt.error("name", f"only an in_process DUT's variants name another estimator, not {kind!r}")
+                entry["name"] = vname_est
             if vsyn is not None:
                 if kind != "synthetic":
                     raise vt.error("synthetic", f"only a synthetic DUT takes [synthetic] overrides, not {kind!r}")
