@@ -35,6 +35,11 @@ SURVEYED = [34.246048, 108.909664, 380.0]  # the log's header (tests/data/README
 W_IE = 7.292115e-5
 AM = math.degrees(1.0) * 60.0  # arcmin per rad
 ALIGNMENT_S = 300.0
+#: the log's IMU, a navigation-grade ring-laser-gyro unit: the grade of seed 000's IMU
+#: (SCENARIOS.md S000, seed000's defaults), given to every estimator (the others default
+#: to their own papers' units)
+RLG = {"gyro_bias": "0.01 deg/h", "gyro_noise": "0.001 deg/sqrt(h)", "accel_bias": "100 ug",
+       "accel_noise": "10 ug/sqrt(Hz)"}
 
 
 # ------------------------------------------------------------------ the independent alignment
@@ -109,7 +114,7 @@ def _drive(name: str, config: dict, step_frames: int, seconds: float | None = No
     rec["dtheta"] = th[:n]
     rec["dvel"] = dv[:n]
     rec["status"] = 0x3F
-    est = create_estimator(name, {"initial_position": SURVEYED, **config})
+    est = create_estimator(name, {"initial_position": SURVEYED, **RLG, **config})
     sols, quals = [], []
     for k in range(0, n, step_frames):
         part = rec[k : k + step_frames]
@@ -193,29 +198,39 @@ def test_seed001_paper_alignment_reports_sigmas_that_cover_its_heading():
 
 def test_sigma_beyond_nav_quality_range_saturates_flagged():
     """Why bullet 4: with the log's own gyro noise (0.05 deg/sqrt(h), the Allan
-    deviation's bound) the heading sigma at the start of the fine alignment is beyond
-    NAV_QUALITY's 655.35'; the sigmas are put on the wire at full scale (every record
-    encodes), the solution flagged not valid while they are, and the run goes on."""
+    deviation's bound) every record fits NAV frames (the heading sigma was 2623' at the
+    start of the fine alignment); and when a sigma is beyond NAV_QUALITY's full scale (a
+    2 s coarse alignment, navigation from 4 s: the heading unknown) it is sent at full
+    scale and the solution flagged not valid while it is, navigation included, and the
+    estimator goes on."""
     from bench.wire.can import CanEncoder
 
-    sol, qual, _ = _drive("seed000", {"gyro_noise": "0.05 deg/sqrt(h)", "alignment": "120 s"}, 100, seconds=150.0,
-                           every=True)
     enc = CanEncoder(wire_range=True)
+    own = {"gyro_noise": "0.05 deg/sqrt(h)"}
+    sol, qual, _ = _drive("seed000", {**own, "alignment": "120 s"}, 100, seconds=150.0, every=True)
     enc.encode_records("NAV_QUALITY", qual)  # raises CodecError if any sigma is beyond the ICD's range
     enc.encode_records("NAV_SOLUTION", sol)
+    sol, qual, _ = _drive("seed000", {**own, "coarse_alignment": "2 s", "alignment": "4 s"}, 100, seconds=150.0,
+                          every=True)
+    enc.encode_records("NAV_QUALITY", qual)
     full = math.radians(655.35 / 60.0)
     sat = np.any(qual["sigma_att"] >= full * (1 - 1e-12), axis=1)
-    assert sat.any(), "the case does not reach the saturation"
+    t = sol["t_ns"]
+    assert sat[t > 4_000_000_000].any(), "no saturation while navigating: the case does not test the flag"
     assert np.all(sol["valid"][sat] == 0)
-    assert sol["t_ns"][-1] == 150_000_000_000
+    assert np.all(sol["valid"][~sat & (t > 4_000_000_000)] == 1)
+    assert t[-1] == 150_000_000_000 and sol["valid"][-1] == 1
 
 
 def test_sigma_saturation_in_a_replay_run_does_not_end_it(tmp_path):
     """Why bullet 4 as a user runs it: the log's first 40 s as ICD IMU frames replayed into
-    seed000 with the log's own gyro noise; the run completes (it ended ``dut_error``,
-    "SigmaHeading ... outside [0, 655.35]")."""
+    seed000 with the log's own gyro noise and a 2 s coarse alignment (the heading sigma
+    beyond NAV_QUALITY's range); the run completes, the saturated epochs at full scale
+    and flagged not valid (it ended ``dut_failed``, "SigmaHeading ... outside [0,
+    655.35]")."""
     import json
 
+    from bench.record.mcap_io import RecordingReader
     from bench.wire.imu import encode_frames
     from tests.fault_matrix.matrix import HERE, bench
 
@@ -225,13 +240,21 @@ def test_sigma_saturation_in_a_replay_run_does_not_end_it(tmp_path):
     frames = encode_frames(t, th[:n], dv[:n], np.full(n, 0x3F), np.full(n, 25.0), np.arange(n) % 256)
     (tmp_path / "imu.bin").write_bytes(frames.tobytes())
     cfg = tmp_path / "dut.toml"
-    cfg.write_text(f'initial_position = {SURVEYED}\ngyro_noise = "0.05 deg/sqrt(h)"\nalignment = "30 s"\n')
+    cfg.write_text(f'initial_position = {SURVEYED}\ngyro_noise = "0.05 deg/sqrt(h)"\ncoarse_alignment = "2 s"\n'
+                   'alignment = "4 s"\n')
     out = tmp_path / "replay.mcap"
     res = bench("replay", "--imu-log", str(tmp_path / "imu.bin"), "--estimator", "seed000", "--dut-config", str(cfg),
                 "--step", "20", "--epoch", "2014-03-21T09:31:51Z", "-o", str(out), cwd=HERE.parent)
-    assert "dut_error" not in res.text and "outside [0, 655.35]" not in res.text, res.text
+    assert "dut_failed" not in res.text and "outside [0, 655.35]" not in res.text, res.text
     info = json.loads(bench("info", str(out), "--json", cwd=HERE.parent, expect=0).out)
     assert info["ended"]["status"] == "complete", info["ended"]
+    r = RecordingReader(out)
+    sol, qual = r.read_columnar("/dut/nav_solution"), r.read_columnar("/dut/nav_quality")
+    assert sol["t_ns"][-1] >= 39_000_000_000
+    sat = np.any(qual["sigma_att"] >= math.radians(655.35 / 60.0) - 1e-9, axis=1)
+    assert sat.any()
+    valid = dict(zip(sol["t_ns"].tolist(), sol["valid"].tolist(), strict=True))
+    assert all(valid[t] == 0 for t in qual["t_ns"][sat].tolist())
 
 
 @pytest.mark.parametrize("name", ["seed000", "seed001", "seed002", "seed003"])
