@@ -14,8 +14,8 @@ the vehicle's rocking out, so a parked vehicle with its engine running and peopl
 aligns as a still one does, only slower. Its accuracy (:func:`coarse_covariance`) is the
 fit's own (the measured disturbance) plus what the datasheet's errors do to it (east gyro
 bias, accelerometer bias, angle random walk, bias instabilities) plus the fit's change
-over the period's last quarter and last half (a disturbance slower than the fit can tell
-from the Earth's rotation shows as a heading that still moves). The coarse period runs at least
+over the period's last quarter (a disturbance slower than the fit can tell from the
+Earth's rotation shows as a heading that still moves). The coarse period runs at least
 ``coarse_alignment`` and on, while the heading sigma exceeds ``coarse_heading_sigma``, up
 to half the alignment: the fine alignment (a linear filter) starts inside its linear
 range, from a prior that covers the coarse error.
@@ -51,6 +51,7 @@ AT_REST_KEYS: dict[str, tuple[str, str, float]] = {
 _EARTH_RATE = 7.292115e-5  # rad/s
 _G = 9.80665
 _FIT_EVERY_NS = 1_000_000_000  # the coarse fit is checked once a second of data
+_SIGMA_POS_MAX = 655.35  # m, NAV_QUALITY's full scale (the aligning epochs are not valid anyway)
 
 
 class RestAlignment:
@@ -100,7 +101,7 @@ class RestAlignment:
             return self.last_ns >= 0.5 * cfg["alignment"] * 1e9
         self.fit = fit
         an = cfg.get("accel_noise", 0.0)
-        earlier = [self.inertial.fit(lat, an, until_s=f * self.inertial.span_s) for f in (0.75, 0.5)]
+        earlier = [self.inertial.fit(lat, an, until_s=0.75 * self.inertial.span_s)]
         self.cov = coarse_covariance(fit, [e for e in earlier if e is not None], cfg, lat)
         hdg = math.sqrt(max(float(self.cov[2, 2]), 0.0))
         return hdg <= cfg.get("coarse_heading_sigma", math.radians(2.0)) or self.last_ns >= 0.5 * cfg["alignment"] * 1e9
@@ -126,7 +127,7 @@ class RestAlignment:
         sol["mode"] = MODE_ALIGNING
         qual = np.zeros(len(times), NAV_QUALITY_DTYPE)
         qual["t_ns"] = times
-        qual["sigma_pos"] = position_sigma
+        qual["sigma_pos"] = min(position_sigma, _SIGMA_POS_MAX)  # NAV_QUALITY's full scale ("at least")
         return EstimatorOutput(sol, qual)
 
     def attitude(self, lat: float) -> np.ndarray:
@@ -164,7 +165,7 @@ def coarse_covariance(fit: InertialFit, earlier: list[InertialFit], cfg: dict[st
     instabilities (a gyro bias that moves by it; an accelerometer bias that moves by it
     within the period, which curves the velocity as the Earth's rotation does) -- and the
     squared changes of the attitude from the ``earlier`` fits (the same over the first
-    three quarters, the first half of the period: how much the rest still moved it)."""
+    three quarters of the period: how much the last quarter still moved it)."""
     T = max(fit.t_s, 1e-3)
     wh = _EARTH_RATE * max(math.cos(lat), 1e-3)
     g = fit.g if fit.g > 0.0 else _G

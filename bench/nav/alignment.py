@@ -214,21 +214,28 @@ class InertialAlignment:
             if len(t) < 3:
                 return None
         a = gravity_velocity_i0(t, lat)
-        u, _, vt = np.linalg.svd(a.T @ vb)
+        # the body's velocity at the start (rocking, vibration) is an unknown constant in
+        # V_ib0: the fit is made on the centred series (a constant velocity estimated with
+        # the rotation), else that offset curves the fit as the Earth's rotation does
+        ac, bc = a - a.mean(axis=0), vb - vb.mean(axis=0)
+        u, _, vt = np.linalg.svd(ac.T @ bc)
         d = np.diag([1.0, 1.0, float(np.linalg.det(u @ vt))])
         C = u @ d @ vt  # C_ib0^i0
-        vr = vb @ C.T  # V_ib0 put into i0
-        g = float(np.sum(vr * a) / np.sum(a * a))
-        res = vr - g * a
-        up = a / np.linalg.norm(a, axis=1, keepdims=True)
-        res_h = res - np.sum(res * up, axis=1, keepdims=True) * up
+        vr = bc @ C.T  # V_ib0 put into i0, centred
+        g = float(np.sum(vr * ac) / np.sum(ac * ac))
+        res = vr - g * ac
+        up = a[-1] / np.linalg.norm(a[-1])
+        res_h = res - np.outer(res @ up, up)
         sd = math.sqrt(float(np.mean(np.sum(res_h**2, axis=1))) / 2.0)
         infl = _autocorrelation_factor(res_h)
-        var = infl * sd**2 + accel_noise**2 * t
+        w = 1.0 / np.maximum(infl * sd**2 + accel_noise**2 * t, 1e-30)
+        # information of the rotation with the constant velocity as a nuisance parameter:
+        # sum w_k (S_k - S_mean)' (S_k - S_mean), S_k = [g a_k x], S_mean the w-weighted mean
+        am = (w[:, None] * a).sum(axis=0) / w.sum()
         info = np.zeros((3, 3))
         for k in range(len(t)):
-            S = _skew(g * a[k])
-            info += S.T @ S / var[k]
+            S = _skew(g * (a[k] - am))
+            info += w[k] * (S.T @ S)
         T = self.span_s
         Cn = _rotation(np.array([0.0, math.cos(lat), math.sin(lat)]), OMEGA_IE * T)  # C_n^i0 at T
         Cb = _quat_to_dcm(self.acc[0:4])  # C_b^ib0 at T

@@ -72,7 +72,8 @@ def independent_attitude() -> np.ndarray:
     inertial-frame alignment over the whole log: the body attitude change from the gyros
     (frozen body frame b0), the specific force integrated in b0, and the least-squares
     rotation (SVD) onto gravity's integral in the navigation frame frozen at the start
-    (which turns with the Earth)."""
+    (which turns with the Earth), both series centred (the body's unknown velocity at the
+    start is a constant in them)."""
     th, dv, dt, lat = _log()
     n = len(th)
     C = np.eye(3)
@@ -93,7 +94,7 @@ def independent_attitude() -> np.ndarray:
     a = W_IE * t
     vi = np.outer(np.sin(a) / W_IE, up) + np.outer((1 - np.cos(a)) / W_IE, np.cross(u, up)) \
         + np.outer(t - np.sin(a) / W_IE, u * (u @ up))
-    U, _, Vt = np.linalg.svd(vi.T @ vb)
+    U, _, Vt = np.linalg.svd((vi - vi.mean(axis=0)).T @ (vb - vb.mean(axis=0)))
     Cib = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
     out = []
     for j, Cb in enumerate(cb):
@@ -199,9 +200,9 @@ def test_seed001_paper_alignment_reports_sigmas_that_cover_its_heading():
 def test_sigma_beyond_nav_quality_range_saturates_flagged():
     """Why bullet 4: with the log's own gyro noise (0.05 deg/sqrt(h), the Allan
     deviation's bound) every record fits NAV frames (the heading sigma was 2623' at the
-    start of the fine alignment); and when a sigma is beyond NAV_QUALITY's full scale (a
-    2 s coarse alignment, navigation from 4 s: the heading unknown) it is sent at full
-    scale and the solution flagged not valid while it is, navigation included, and the
+    start of the fine alignment); a sigma beyond NAV_QUALITY's full scale -- the heading
+    after a 2 s coarse alignment, the position of a start point known to 100 km -- is sent at
+    full scale, the solution flagged not valid while it is, navigation included, and the
     estimator goes on."""
     from bench.wire.can import CanEncoder
 
@@ -210,24 +211,28 @@ def test_sigma_beyond_nav_quality_range_saturates_flagged():
     sol, qual, _ = _drive("seed000", {**own, "alignment": "120 s"}, 100, seconds=150.0, every=True)
     enc.encode_records("NAV_QUALITY", qual)  # raises CodecError if any sigma is beyond the ICD's range
     enc.encode_records("NAV_SOLUTION", sol)
-    sol, qual, _ = _drive("seed000", {**own, "coarse_alignment": "2 s", "alignment": "4 s"}, 100, seconds=150.0,
+    full = math.radians(655.35 / 60.0)
+    sol, qual, _ = _drive("seed000", {**own, "coarse_alignment": "2 s", "alignment": "20 s"}, 100, seconds=30.0,
                           every=True)
     enc.encode_records("NAV_QUALITY", qual)
-    full = math.radians(655.35 / 60.0)
-    sat = np.any(qual["sigma_att"] >= full * (1 - 1e-12), axis=1)
+    assert np.any(qual["sigma_att"][:, 0] >= full * (1 - 1e-12)), "the heading sigma never reaches full scale"
+    sol, qual, _ = _drive("seed000", {**own, "position_sigma": "100 km", "alignment": "60 s"}, 100, seconds=150.0,
+                          every=True)
+    enc.encode_records("NAV_QUALITY", qual)
+    sat = np.any(qual["sigma_pos"] >= 655.35 * (1 - 1e-12), axis=1)
     t = sol["t_ns"]
-    assert sat[t > 4_000_000_000].any(), "no saturation while navigating: the case does not test the flag"
+    nav = t > 60_000_000_000
+    assert sat[nav].all(), "the position sigma is not saturated while navigating: the case does not test the flag"
     assert np.all(sol["valid"][sat] == 0)
-    assert np.all(sol["valid"][~sat & (t > 4_000_000_000)] == 1)
-    assert t[-1] == 150_000_000_000 and sol["valid"][-1] == 1
+    assert t[-1] == 150_000_000_000 and np.all(sol["mode"][nav] == 1)  # navigating (inertial only), flagged
 
 
 def test_sigma_saturation_in_a_replay_run_does_not_end_it(tmp_path):
     """Why bullet 4 as a user runs it: the log's first 40 s as ICD IMU frames replayed into
-    seed000 with the log's own gyro noise and a 2 s coarse alignment (the heading sigma
-    beyond NAV_QUALITY's range); the run completes, the saturated epochs at full scale
-    and flagged not valid (it ended ``dut_failed``, "SigmaHeading ... outside [0,
-    655.35]")."""
+    seed000 with the log's own gyro noise, a 2 s coarse alignment and a start point known
+    to 100 km (sigmas beyond NAV_QUALITY's range); the run completes, the saturated epochs at
+    full scale and flagged not valid (it ended ``dut_failed``, "SigmaHeading ... outside
+    [0, 655.35]")."""
     import json
 
     from bench.record.mcap_io import RecordingReader
@@ -241,18 +246,19 @@ def test_sigma_saturation_in_a_replay_run_does_not_end_it(tmp_path):
     (tmp_path / "imu.bin").write_bytes(frames.tobytes())
     cfg = tmp_path / "dut.toml"
     cfg.write_text(f'initial_position = {SURVEYED}\ngyro_noise = "0.05 deg/sqrt(h)"\ncoarse_alignment = "2 s"\n'
-                   'alignment = "4 s"\n')
+                   'alignment = "4 s"\nposition_sigma = "100 km"\n')
     out = tmp_path / "replay.mcap"
     res = bench("replay", "--imu-log", str(tmp_path / "imu.bin"), "--estimator", "seed000", "--dut-config", str(cfg),
                 "--step", "20", "--epoch", "2014-03-21T09:31:51Z", "-o", str(out), cwd=HERE.parent)
-    assert "dut_failed" not in res.text and "outside [0, 655.35]" not in res.text, res.text
+    assert "dut_failed" not in res.text and "dut_error" not in res.text and "outside [0, 655.35]" not in res.text, \
+        res.text
     info = json.loads(bench("info", str(out), "--json", cwd=HERE.parent, expect=0).out)
     assert info["ended"]["status"] == "complete", info["ended"]
     r = RecordingReader(out)
     sol, qual = r.read_columnar("/dut/nav_solution"), r.read_columnar("/dut/nav_quality")
     assert sol["t_ns"][-1] >= 39_000_000_000
-    sat = np.any(qual["sigma_att"] >= math.radians(655.35 / 60.0) - 1e-9, axis=1)
-    assert sat.any()
+    sat = np.any(qual["sigma_pos"] >= 655.35 - 1e-9, axis=1)
+    assert sat[qual["t_ns"] > 4_000_000_000].all()
     valid = dict(zip(sol["t_ns"].tolist(), sol["valid"].tolist(), strict=True))
     assert all(valid[t] == 0 for t in qual["t_ns"][sat].tolist())
 
