@@ -232,10 +232,9 @@ class InertialAlignment:
         # information of the rotation with the constant velocity as a nuisance parameter:
         # sum w_k (S_k - S_mean)' (S_k - S_mean), S_k = [g a_k x], S_mean the w-weighted mean
         am = (w[:, None] * a).sum(axis=0) / w.sum()
-        info = np.zeros((3, 3))
-        for k in range(len(t)):
-            S = _skew(g * (a[k] - am))
-            info += w[k] * (S.T @ S)
+        v = g * (a - am)
+        # [v x]'[v x] = |v|^2 I - v v'
+        info = float(np.sum(w * np.sum(v * v, axis=1))) * np.eye(3) - (v * w[:, None]).T @ v
         T = self.span_s
         Cn = _rotation(np.array([0.0, math.cos(lat), math.sin(lat)]), OMEGA_IE * T)  # C_n^i0 at T
         Cb = _quat_to_dcm(self.acc[0:4])  # C_b^ib0 at T
