@@ -96,12 +96,12 @@ class RestAlignment:
         if self.last_ns < self._next_fit_ns:
             return False
         self._next_fit_ns = self.last_ns + _FIT_EVERY_NS
-        fit = self.inertial.fit(lat, cfg.get("accel_noise", 0.0))
+        an, gb = cfg.get("accel_noise", 0.0), cfg.get("gyro_bias", 0.0)
+        fit = self.inertial.fit(lat, an, gyro_bias=gb)
         if fit is None:
             return self.last_ns >= 0.5 * cfg["alignment"] * 1e9
         self.fit = fit
-        an = cfg.get("accel_noise", 0.0)
-        earlier = [self.inertial.fit(lat, an, until_s=0.75 * self.inertial.span_s)]
+        earlier = [self.inertial.fit(lat, an, until_s=0.75 * self.inertial.span_s, gyro_bias=gb)]
         self.cov = coarse_covariance(fit, [e for e in earlier if e is not None], cfg, lat)
         hdg = math.sqrt(max(float(self.cov[2, 2]), 0.0))
         return hdg <= cfg.get("coarse_heading_sigma", math.radians(2.0)) or self.last_ns >= 0.5 * cfg["alignment"] * 1e9

@@ -15,11 +15,14 @@ increments) and integrated, ``V_ib0(t)``; gravity's reaction seen from the navig
 frame frozen at the start (``i0``) turns with the Earth, so its integral ``V_i0(t)`` is
 known in closed form. The constant rotation between the two frames is the attitude at
 the start; it is the least-squares rotation (Wahba's problem, solved by SVD) between the
-two velocity series sampled over the whole period. Rocking and vibration only add their
-small velocity to ``V_ib0``: the residual of the fit measures it, and the fit's own
-covariance (information of the vector pairs, the residual's autocorrelation counted)
-plus the sensor biases' known effects (east gyro bias over the horizontal Earth rate,
-accelerometer bias over g) gives the alignment's accuracy.
+two velocity series sampled over the whole period (centred: the body's velocity at the
+start is an unknown constant in them). Rocking and vibration only add their small velocity
+to ``V_ib0``: the residual of the fit measures it, and the fit's own covariance
+(information of the vector pairs, the residual's autocorrelation counted) gives its
+accuracy. The gyros also measure the Earth's axis directly -- the body turns in inertial
+space about it at the Earth rate -- which is the analytic alignment's heading: a third
+vector pair, weighted by how straight that turn is (a still unit: good in seconds; a
+rocking one: worthless, and weighted so).
 """
 
 from __future__ import annotations
@@ -71,13 +74,13 @@ def latitude_from_static(f_b: np.ndarray, omega_ib_b: np.ndarray) -> float:
 
 @njit(cache=True)
 def inertial_accumulate(acc: np.ndarray, dth: np.ndarray, dvel: np.ndarray, t_ns: np.ndarray, period_ns: float,
-                        out_t: np.ndarray, out_v: np.ndarray) -> int:
+                        out_t: np.ndarray, out_v: np.ndarray, out_q: np.ndarray) -> int:
     """Integrate one block of increments (``dth``, ``dvel`` (N, 3), ``t_ns`` (N,)) into the
     inertial-frame accumulator ``acc`` (12,): q_b^ib0 (4, scalar first), V_ib0 (3), the
     next sample time (ns), the start time (ns, set by the first frame, whose increments
     only mark it), started flag, the last frame's time. Each time a frame's time reaches
-    the next sample time, (t, V_ib0) goes to ``out_t``/``out_v`` (length >= N); returns
-    how many."""
+    the next sample time, (t, V_ib0, q_b^ib0) goes to ``out_t``/``out_v``/``out_q``
+    (length >= N); returns how many."""
     n = 0
     for k in range(t_ns.shape[0]):
         t = float(t_ns[k])
@@ -112,6 +115,7 @@ def inertial_accumulate(acc: np.ndarray, dth: np.ndarray, dvel: np.ndarray, t_ns
         if t >= acc[7]:
             out_t[n] = t - acc[8]
             out_v[n, 0], out_v[n, 1], out_v[n, 2] = acc[4], acc[5], acc[6]
+            out_q[n, 0], out_q[n, 1], out_q[n, 2], out_q[n, 3] = acc[0], acc[1], acc[2], acc[3]
             n += 1
             while acc[7] <= t:
                 acc[7] += period_ns
@@ -180,6 +184,7 @@ class InertialAlignment:
         self.period_ns = float(round(sample_s * 1e9))
         self._t: list[np.ndarray] = []
         self._v: list[np.ndarray] = []
+        self._q: list[np.ndarray] = []
 
     def add(self, dtheta: np.ndarray, dvel: np.ndarray, t_ns: np.ndarray) -> None:
         """Integrate one block of frames."""
@@ -188,29 +193,34 @@ class InertialAlignment:
             return
         out_t = np.zeros(n)
         out_v = np.zeros((n, 3))
-        k = inertial_accumulate(self.acc, dtheta, dvel, t_ns, self.period_ns, out_t, out_v)
+        out_q = np.zeros((n, 4))
+        k = inertial_accumulate(self.acc, dtheta, dvel, t_ns, self.period_ns, out_t, out_v, out_q)
         if k:
             self._t.append(out_t[:k] * 1e-9)
             self._v.append(out_v[:k])
+            self._q.append(out_q[:k])
 
     @property
     def span_s(self) -> float:
         """Seconds from the first frame to the last."""
         return (self.acc[10] - self.acc[8]) * 1e-9 if self.acc[9] else 0.0
 
-    def fit(self, lat: float, accel_noise: float = 0.0, until_s: float | None = None) -> InertialFit | None:
+    def fit(self, lat: float, accel_noise: float = 0.0, until_s: float | None = None,
+            gyro_bias: float = 0.0) -> InertialFit | None:
         """The attitude at the last frame and its accuracy at latitude ``lat`` (rad), or
         None before three samples. ``accel_noise`` (m/s/sqrt(s), the datasheet's velocity
-        random walk) adds its integral's growth to the measured disturbance; ``until_s``
-        fits the samples up to that time only (the attitude still carried to the last
-        frame by the gyros)."""
+        random walk) adds its integral's growth to the measured disturbance, ``gyro_bias``
+        (rad/s, the datasheet's) to the Earth axis the gyros measured; ``until_s`` fits the
+        samples up to that time only (the attitude still carried to the last frame by the
+        gyros)."""
         if sum(len(t) for t in self._t) < 3:
             return None
         t = np.concatenate(self._t)
         vb = np.concatenate(self._v)
+        qb = np.concatenate(self._q)
         if until_s is not None:
             keep = t <= until_s
-            t, vb = t[keep], vb[keep]
+            t, vb, qb = t[keep], vb[keep], qb[keep]
             if len(t) < 3:
                 return None
         a = gravity_velocity_i0(t, lat)
@@ -218,9 +228,7 @@ class InertialAlignment:
         # V_ib0: the fit is made on the centred series (a constant velocity estimated with
         # the rotation), else that offset curves the fit as the Earth's rotation does
         ac, bc = a - a.mean(axis=0), vb - vb.mean(axis=0)
-        u, _, vt = np.linalg.svd(ac.T @ bc)
-        d = np.diag([1.0, 1.0, float(np.linalg.det(u @ vt))])
-        C = u @ d @ vt  # C_ib0^i0
+        C = _wahba(ac.T @ bc)  # C_ib0^i0, from gravity alone
         vr = bc @ C.T  # V_ib0 put into i0, centred
         g = float(np.sum(vr * ac) / np.sum(ac * ac))
         res = vr - g * ac
@@ -235,6 +243,25 @@ class InertialAlignment:
         v = g * (a - am)
         # [v x]'[v x] = |v|^2 I - v v'
         info = float(np.sum(w * np.sum(v * v, axis=1))) * np.eye(3) - (v * w[:, None]).T @ v
+        # the Earth's axis as the gyros measured it: the body turns in inertial space at the
+        # Earth rate about it (u in i0, the rate vector's direction in ib0), rocking and
+        # noise about that line; its weight from the line fit's own spread (a still unit:
+        # the analytic alignment's heading in a few seconds; a rocking one: no weight). The
+        # two combined by weighted least squares (Gauss-Newton from the gravity fit: an SVD
+        # of pairs whose weights differ by many orders loses the weaker pairs' digits)
+        axis = _earth_axis(t, qb, gyro_bias)
+        if axis is not None:
+            e_b, w_e = axis
+            u_i = np.array([0.0, math.cos(lat), math.sin(lat)])
+            bw = vb - (w[:, None] * vb).sum(axis=0) / w.sum()
+            for _ in range(3):
+                y = bw @ C.T
+                ye = C @ e_b
+                H = float(np.sum(w * np.sum(y * y, axis=1))) * np.eye(3) - (y * w[:, None]).T @ y \
+                    + w_e * (np.eye(3) - np.outer(ye, ye))
+                rhs = (w[:, None] * np.cross(y, v - y)).sum(axis=0) + w_e * np.cross(ye, u_i - ye)
+                C = _rotation_vector(np.linalg.solve(H, rhs)) @ C
+            info = info + w_e * (np.eye(3) - np.outer(u_i, u_i))
         T = self.span_s
         Cn = _rotation(np.array([0.0, math.cos(lat), math.sin(lat)]), OMEGA_IE * T)  # C_n^i0 at T
         Cb = _quat_to_dcm(self.acc[0:4])  # C_b^ib0 at T
@@ -242,6 +269,45 @@ class InertialAlignment:
         cov_i0 = np.linalg.solve(info, np.eye(3))
         cov = Cn.T @ cov_i0 @ Cn
         return InertialFit(C_bn, 0.5 * (cov + cov.T), sd, infl, g, len(t), T)
+
+
+def _rotation_vector(r: np.ndarray) -> np.ndarray:
+    a = float(np.linalg.norm(r))
+    return _rotation(r / a, a) if a > 0.0 else np.eye(3)
+
+
+def _wahba(B: np.ndarray) -> np.ndarray:
+    """The rotation C maximising trace(C' B) (B = sum w a b'): a = C b, by SVD."""
+    u, _, vt = np.linalg.svd(B)
+    return u @ np.diag([1.0, 1.0, float(np.linalg.det(u @ vt))]) @ vt
+
+
+def _earth_axis(t: np.ndarray, q: np.ndarray, gyro_bias: float) -> tuple[np.ndarray, float] | None:
+    """The Earth's rotation axis in the body frame frozen at the start, from the body's
+    attitude history in inertial space (``q`` (K, 4) q_b^ib0 at the times ``t``): the slope
+    of its rotation vector (a straight-line fit, its intercept the rocking at the start),
+    and the weight (1 / rad^2) of that direction from the fit's residual and the gyro bias.
+    None when the slope is not the Earth rate (the body turned)."""
+    qv = q[:, 1:4]
+    nv = np.linalg.norm(qv, axis=1)
+    ang = 2.0 * np.arctan2(nv, q[:, 0])
+    r = qv * np.where(nv > 0.0, ang / np.maximum(nv, 1e-300), 2.0)[:, None]
+    tc = t - t.mean()
+    stt = float(np.sum(tc * tc))
+    if len(t) < 8 or stt <= 0.0 or t[-1] <= t[0]:
+        return None
+    rc = r - r.mean(axis=0)
+    slope = (tc[:, None] * rc).sum(axis=0) / stt
+    res = rc - np.outer(tc, slope)
+    # the residual (rocking, the angle random walk) taken as one independent sample over the
+    # period: a slope no better than 12 var_r / T^2 (a few cycles of a slow rocking are not
+    # many independent samples)
+    span = float(t[-1] - t[0])
+    var = 12.0 * float(np.mean(np.sum(res * res, axis=1))) / 3.0 / span**2 + gyro_bias**2
+    rate = float(np.linalg.norm(slope))
+    if abs(rate - OMEGA_IE) > 3.0 * math.sqrt(3.0 * var) + 0.1 * OMEGA_IE:
+        return None
+    return slope / rate, rate * rate / var
 
 
 def _autocorrelation_factor(r: np.ndarray, max_lag: int = 100) -> float:
