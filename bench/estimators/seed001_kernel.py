@@ -51,8 +51,8 @@ S_HMETA = 53  # 2: history count, head
 S_NBDS, S_NREJ, S_NIS, S_NSKIP = 55, 56, 57, 58  # fixes accepted, gated out, last NIS, no-fix skipped
 S_W = 59  # 3: body rate of the last interval, rad/s
 S_CONSUMED = 62  # fixes consumed this call
-S_STILL = 64  # STILL_SIZE: the standstill detector (bench.estimators.sins_core)
-ST_SIZE = S_STILL + STILL_SIZE
+S_SS = 64  # STILL_SIZE: the IMU standstill detector (bench.estimators.sins_core; S_STILL is the odometer's)
+ST_SIZE = S_SS + STILL_SIZE
 
 # prm layout
 P_NG, P_NA, P_GB, P_AB, P_TU, P_OUT, P_ZUPT, P_RP0 = 0, 1, 2, 3, 4, 5, 6, 7
@@ -256,7 +256,7 @@ def run_step(st, P, prm, xm, hist, dth, dvel, t_imu, o_t, o_v, o_ok, fixes, sol,
         _step(sins, th, dv, T)
         _stillness(st, th, dv, T)
         quat_dcm(st, S_SINS + 6, C)
-        standstill_feed(st[S_STILL : S_STILL + STILL_SIZE], C, th, dv, T, t, prm[P_STILL : P_STILL + STILL_PRM])
+        standstill_feed(st[S_SS : S_SS + STILL_SIZE], C, th, dv, T, t, prm[P_STILL : P_STILL + STILL_PRM])
         for i in range(3):
             st[S_FN + i] += C[i, 0] * dv[0] + C[i, 1] * dv[1] + C[i, 2] * dv[2]
         st[S_TSINCE] += T
@@ -268,7 +268,7 @@ def run_step(st, P, prm, xm, hist, dth, dvel, t_imu, o_t, o_v, o_ok, fixes, sol,
                 x = zupt_update(sins, P, st[S_P0 : S_P0 + 3], prm[P_ZUPT], prm[P_RP0])
                 _feedback(st, x)
             elif not (prm[P_ODO] > 0.0 and st[S_OOK] > 0.0 and t - st[S_OT] <= prm[P_ODOTO]) \
-                    and standstill(st[S_STILL : S_STILL + STILL_SIZE], sins, t, prm[P_STILL : P_STILL + STILL_PRM]):
+                    and standstill(st[S_SS : S_SS + STILL_SIZE], sins, t, prm[P_STILL : P_STILL + STILL_PRM]):
                 # standing without a fresh odometer (with one, its own zero-velocity update)
                 x = zero_velocity_update(sins, P, prm[P_STILL + 5])
                 _apply(st, x, xm)
