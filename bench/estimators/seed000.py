@@ -39,7 +39,13 @@ from bench.config.table import check_keys
 from bench.dut import MODE_ALIGNING, NAV_QUALITY_DTYPE, NAV_SOLUTION_DTYPE, DutInputs, Estimator, EstimatorOutput
 from bench.errors import ConfigError
 from bench.estimators import seed000_kernel as K  # noqa: N812 - the kernel layout constants
-from bench.estimators.rest_alignment import RestAlignment, core_covariance
+from bench.estimators.rest_alignment import (
+    AT_REST_KEYS,
+    RestAlignment,
+    core_covariance,
+    standstill_parameters,
+    standstill_switch,
+)
 from bench.estimators.settings import period_ns, surveyed_position
 from bench.units import quantity
 
@@ -69,8 +75,11 @@ CONFIG_KEYS: dict[str, tuple[str, str, float]] = {
     "zupt_noise": ("velocity", "m/s", 0.001),
     "position_sigma": ("length", "m", 0.1),
     "output_rate": ("frequency", "Hz", 100.0),
+    "gyro_bias_instability": ("angular_rate", "deg/h", 0.0),  # the coarse alignment's accuracy only
+    "accel_bias_instability": ("acceleration", "ug", 0.0),
+    **AT_REST_KEYS,
 }
-_OTHER_KEYS = ("initial_position", "mode", "gyro_noise_model")
+_OTHER_KEYS = ("initial_position", "mode", "gyro_noise_model", "standstill_zupt")
 NOISE_MODELS = ("shared", "independent")
 MODES = ("attitude_position", "velocity_position")
 _EMPTY_I = np.zeros(0, np.int64)
@@ -91,6 +100,7 @@ class Seed000(Estimator):
         self.prm = np.zeros(K.PRM_SIZE)
         self._rest = RestAlignment()
         self._out_ns = 10_000_000
+        self._standstill = True
 
     # -- configuration -------------------------------------------------------------------
     def configure(self, config: Mapping[str, Any]) -> None:
@@ -110,6 +120,7 @@ class Seed000(Estimator):
                 f"expected one of {NOISE_MODELS}, found {noise_model!r}", key="dut.config.gyro_noise_model"
             )
         self.prm[K.P_SHARED] = 1.0 if noise_model == "shared" else 0.0
+        self._standstill = standstill_switch(config)
         self.position = surveyed_position(config)
         c = self.cfg
         if c["coarse_alignment"] >= c["alignment"]:
@@ -132,6 +143,7 @@ class Seed000(Estimator):
         prm[K.P_DTIMEOUT] = c["doppler_timeout"] * 1e9
         prm[K.P_SMOUNT] = c["mounting_sigma"]
         prm[K.P_GB], prm[K.P_AB] = c["gyro_bias"], c["accel_bias"]
+        prm[K.P_STILL : K.PRM_SIZE] = standstill_parameters(c, self._standstill)
 
     def warm_up(self) -> None:
         """Compile the step kernel for the argument types of a step (the decoder's DOPPLER
@@ -173,7 +185,7 @@ class Seed000(Estimator):
         """Sum the increments at rest; output "aligning" epochs at the surveyed position."""
         self._rest.add(imu)
         out = self._rest.epochs(inputs.t_ns, self._out_ns, self.position, self.cfg["position_sigma"])
-        if self._rest.done(self.cfg["coarse_alignment"]):
+        if self._rest.done(self.cfg["coarse_alignment"], self.cfg, self.position[0]):  # type: ignore[index]
             self._start_fine(self._rest.last_ns)
         return out
 
@@ -191,7 +203,9 @@ class Seed000(Estimator):
         st[K.S_P0 : K.S_P0 + 3] = lat, lon, h
         st[K.S_MODE] = MODE_ALIGNING
         st[K.S_TNOM] = self._rest.nominal_step_s()
-        self.P[:, :] = np.diag(core_covariance(K.N_STATES, c, t_ns * 1e-9, lat))
+        self.P[:, :] = core_covariance(K.N_STATES, c, t_ns * 1e-9, lat, self._rest.cov)
+        self.prm[K.P_ZUPT] = self._rest.zupt_noise(c["zupt_noise"])
+        self.prm[K.P_STILL : K.PRM_SIZE] = standstill_parameters(c, self._standstill, self._rest)
         self._rest.finish()
 
     @property

@@ -35,11 +35,16 @@ from bench.estimators.ins_model import (
 )
 from bench.estimators.kf import joseph_update, time_update
 from bench.estimators.sins_core import (
+    STILL_PRM,
+    STILL_SIZE,
     core_feedback,
     move_position,
     quat_dcm,
     rotate_attitude,
+    standstill,
+    standstill_feed,
     write_output,
+    zero_velocity_update,
     zupt_update,
 )
 from bench.nav.strapdown import _step
@@ -62,13 +67,15 @@ S_NEXT_OUT, S_ALIGN_END, S_NEXT_MU = 51, 53, 54  # 52 unused
 S_DR_ON, S_MODE = 55, 56
 S_P0 = 57  # 3: the surveyed position (lat, lon, h) held in the alignment
 S_UPDATES, S_EXCL, S_TNOM = 60, 61, 62  # updates made, Doppler excluded, nominal IMU interval (s)
-ST_SIZE = 64
+S_STILL = 64  # STILL_SIZE: the standstill detector (bench.estimators.sins_core)
+ST_SIZE = S_STILL + STILL_SIZE
 
 # prm layout
 P_NG, P_NA, P_SD, P_DRATE, P_SK, P_TK = 0, 1, 2, 3, 4, 5
 P_TU, P_MU, P_MODE, P_RATT, P_RPOS, P_RVEL, P_ZUPT, P_RP0 = 6, 7, 8, 9, 10, 11, 12, 13
 P_OUT, P_LOWF, P_DTIMEOUT, P_SMOUNT, P_GB, P_AB, P_SHARED = 14, 15, 16, 17, 18, 19, 20
-PRM_SIZE = 24
+P_STILL = 24  # STILL_PRM: the standstill detector's parameters
+PRM_SIZE = P_STILL + STILL_PRM
 
 
 
@@ -188,6 +195,20 @@ def _zupt(st: np.ndarray, P: np.ndarray, prm: np.ndarray) -> None:
 
 
 @njit(cache=True)
+def _standstill(st: np.ndarray, P: np.ndarray, prm: np.ndarray, t: float) -> None:
+    """Navigating: a zero-velocity update when the vehicle stands (the detector quiet, the
+    INS slow, and the Doppler radar, when it reports, reading no more than the standstill
+    speed)."""
+    ps = prm[P_STILL : P_STILL + STILL_PRM]
+    if not standstill(st[S_STILL : S_STILL + STILL_SIZE], st[S_SINS : S_SINS + 20], t, ps):
+        return
+    if st[S_DOK] > 0.0 and t - st[S_DT] <= prm[P_DTIMEOUT] and abs(st[S_DV]) > ps[4]:
+        return
+    x = zero_velocity_update(st[S_SINS : S_SINS + 20], P, ps[5])
+    _feedback(st, x, st[S_DR_ON] == 1.0)
+
+
+@njit(cache=True)
 def _measure(st: np.ndarray, P: np.ndarray, prm: np.ndarray) -> None:
     """The integrated filter's update: SINS minus DRS attitude (or velocity) and position."""
     n = N_STATES
@@ -243,9 +264,9 @@ def _measure(st: np.ndarray, P: np.ndarray, prm: np.ndarray) -> None:
 def _output(st: np.ndarray, P: np.ndarray, t: float, sol: np.ndarray, qual: np.ndarray, k: int) -> None:
     r = sol[k]
     q = qual[k]
-    write_output(st, S_SINS, P, t, r, q)
+    sat = write_output(st, S_SINS, P, t, r, q)
     r.mode = np.uint8(st[S_MODE])
-    r.valid = np.uint8(1 if st[S_PHASE] == 2.0 else 0)
+    r.valid = np.uint8(1 if st[S_PHASE] == 2.0 and not sat else 0)
     q.excluded = np.uint8(FAULT_DOPPLER if st[S_EXCL] > 0.0 else 0)
 
 
@@ -292,6 +313,7 @@ def run_step(
             dv[i] = dvel[k, i] - st[S_BA + i] * T
         _step(sins, th, dv, T)
         quat_dcm(st, S_SINS + 6, C)
+        standstill_feed(st[S_STILL : S_STILL + STILL_SIZE], C, th, dv, T, t, prm[P_STILL : P_STILL + STILL_PRM])
         for i in range(3):
             st[S_FN + i] += C[i, 0] * dv[0] + C[i, 1] * dv[1] + C[i, 2] * dv[2]
         st[S_TSINCE] += T
@@ -314,6 +336,8 @@ def run_step(
             _time_update(st, P, prm, st[S_TSINCE])
             if not nav:
                 _zupt(st, P, prm)
+            else:
+                _standstill(st, P, prm, t)
         if not nav and t >= st[S_ALIGN_END]:
             if st[S_TSINCE] > 0.0:
                 _time_update(st, P, prm, st[S_TSINCE])

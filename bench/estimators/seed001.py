@@ -38,7 +38,13 @@ from bench.errors import ConfigError
 from bench.estimators import seed001_kernel as K  # noqa: N812 - the kernel layout constants
 from bench.estimators.fixes import take_fixes
 from bench.estimators.outblocks import OutputBlocks
-from bench.estimators.rest_alignment import RestAlignment, core_covariance
+from bench.estimators.rest_alignment import (
+    AT_REST_KEYS,
+    RestAlignment,
+    core_covariance,
+    standstill_parameters,
+    standstill_switch,
+)
 from bench.estimators.seed001_meas import DDT, DK, MK
 from bench.estimators.settings import period_ns, surveyed_position, vectors
 from bench.units import quantity
@@ -75,6 +81,7 @@ CONFIG_KEYS: dict[str, tuple[str, str, float]] = {
     "zupt_accel_std": ("acceleration", "m/s^2", 0.05),
     "zupt_rate": ("angular_rate", "deg/s", 1.0),
     "stop_zupt_noise": ("velocity", "m/s", 0.01),
+    **AT_REST_KEYS,
 }
 #: key -> (dimension, unit of a bare number, default (3,)); body RFU for the lever arms
 VECTOR_KEYS: dict[str, tuple[str, str, tuple[float, float, float]]] = {
@@ -91,7 +98,7 @@ _SWITCHES = {
     "map_matching": False,
     "log_diagnostics": False,
 }
-_OTHER_KEYS = ("initial_position", "road_network")
+_OTHER_KEYS = ("initial_position", "road_network", "standstill_zupt")
 _EMPTY_I = np.zeros(0, np.int64)
 _EMPTY_F = np.zeros(0)
 _ODO_COLUMNS = ("rx_ns", "speed", "valid")
@@ -114,6 +121,7 @@ class Seed001(Estimator):
         self._pending = np.zeros((0, K.FIX_COLS))
         self._rest = RestAlignment()
         self._out_ns = 10_000_000
+        self._standstill = True
         self._matcher: Any = None
         self._mm_sent: dict[int, tuple[float, float]] = {}
         self._mm_offset = (0.0, 0.0)
@@ -170,6 +178,8 @@ class Seed001(Estimator):
         p[K.P_ZS], p[K.P_ZN] = c["zupt_speed"], c["stop_zupt_noise"]
         p[K.P_BDSAGE], p[K.P_ODOTO] = c["bds_aiding_timeout"] * 1e9, c["odometer_timeout"] * 1e9
         self.st[K.S_DT] = c["time_offset"]
+        self._standstill = standstill_switch(config)
+        p[K.P_STILL : K.PRM_SIZE] = standstill_parameters(c, self._standstill)
         if self.switch["map_matching"]:
             self._matcher = _matcher(config.get("road_network"))
 
@@ -255,7 +265,7 @@ class Seed001(Estimator):
         """Sum the increments at rest; output "aligning" epochs at the surveyed position."""
         self._rest.add(imu)
         out = self._rest.epochs(inputs.t_ns, self._out_ns, self.position, self.cfg["position_sigma"])
-        if self._rest.done(self.cfg["coarse_alignment"]):
+        if self._rest.done(self.cfg["coarse_alignment"], self.cfg, self.position[0]):  # type: ignore[index]
             self._start_fine(self._rest.last_ns)
         return out
 
@@ -274,11 +284,14 @@ class Seed001(Estimator):
         st[K.S_TNOM] = self._rest.nominal_step_s()
         # the INS history holds 2 s at the measured rate (HIST_LEN: 2 s at 200 Hz, the least kept)
         self.hist = np.zeros((max(K.HIST_LEN, math.ceil(2.0 / st[K.S_TNOM] - 1e-9)), 14))
-        diag = core_covariance(K.N_STATES, c, t_ns * 1e-9, lat)
-        diag[DK] = c["odometer_scale_sigma"] ** 2
-        diag[DDT] = c["time_offset_sigma"] ** 2 if self.switch["time_offset_estimation"] else 0.0
-        diag[MK : MK + 3] = self.prm[K.P_MS : K.P_MS + 3] ** 2
-        self.P[:, :] = np.diag(diag)
+        P = core_covariance(K.N_STATES, c, t_ns * 1e-9, lat, self._rest.cov)
+        P[DK, DK] = c["odometer_scale_sigma"] ** 2
+        P[DDT, DDT] = c["time_offset_sigma"] ** 2 if self.switch["time_offset_estimation"] else 0.0
+        for i in range(3):
+            P[MK + i, MK + i] = self.prm[K.P_MS + i] ** 2
+        self.P[:, :] = P
+        self.prm[K.P_ZUPT] = self._rest.zupt_noise(c["zupt_noise"])
+        self.prm[K.P_STILL : K.PRM_SIZE] = standstill_parameters(c, self._standstill, self._rest)
         self._rest.finish()
 
     # -- map matching ----------------------------------------------------------------------

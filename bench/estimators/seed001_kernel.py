@@ -20,7 +20,17 @@ from bench.dut import FAULT_BDS, MODE_BDS, MODE_INERTIAL, MODE_MULTI_SENSOR, MOD
 from bench.estimators.ins_model import DV, PHI, discretize, ins_error_matrix, radii
 from bench.estimators.kf import time_update
 from bench.estimators.seed001_meas import DDT, DK, MK, N_STATES, bds_update, hist_push, nhc_update, zero_velocity
-from bench.estimators.sins_core import core_feedback, quat_dcm, write_output, zupt_update
+from bench.estimators.sins_core import (
+    STILL_PRM,
+    STILL_SIZE,
+    core_feedback,
+    quat_dcm,
+    standstill,
+    standstill_feed,
+    write_output,
+    zero_velocity_update,
+    zupt_update,
+)
 from bench.nav.strapdown import _step
 
 __all__ = ["N_STATES", "ST_SIZE", "PRM_SIZE", "HIST_LEN", "FIX_COLS", "run_step"]
@@ -41,7 +51,8 @@ S_HMETA = 53  # 2: history count, head
 S_NBDS, S_NREJ, S_NIS, S_NSKIP = 55, 56, 57, 58  # fixes accepted, gated out, last NIS, no-fix skipped
 S_W = 59  # 3: body rate of the last interval, rad/s
 S_CONSUMED = 62  # fixes consumed this call
-ST_SIZE = 64
+S_SS = 64  # STILL_SIZE: the IMU standstill detector (bench.estimators.sins_core; S_STILL is the odometer's)
+ST_SIZE = S_SS + STILL_SIZE
 
 # prm layout
 P_NG, P_NA, P_GB, P_AB, P_TU, P_OUT, P_ZUPT, P_RP0 = 0, 1, 2, 3, 4, 5, 6, 7
@@ -56,7 +67,8 @@ P_ZT, P_ZA, P_ZW, P_ZS, P_ZN = 32, 33, 34, 35, 36  # still time s, accel std, ra
 P_BDSAGE, P_ODOTO = 37, 38  # ns: BDS counts as aiding for, odometer sample valid for
 P_QG, P_QA = 39, 40  # random-walk densities of the gyro and accelerometer biases (instability)
 P_NL = 41  # 3: the point the non-holonomic constraint holds at (body RFU, m)
-PRM_SIZE = 44
+P_STILL = 44  # STILL_PRM: the standstill detector's parameters
+PRM_SIZE = P_STILL + STILL_PRM
 HIST_LEN = 400  # 2 s of 200 Hz frames
 FIX_COLS = 10
 
@@ -182,9 +194,9 @@ def _output(st: np.ndarray, P: np.ndarray, prm: np.ndarray, t: float, sol: np.nd
             k: int) -> None:
     r = sol[k]
     q = qual[k]
-    write_output(st, S_SINS, P, t, r, q)
+    sat = write_output(st, S_SINS, P, t, r, q)
     r.mode = np.uint8(st[S_MODE])
-    r.valid = np.uint8(1 if st[S_PHASE] == 2.0 else 0)
+    r.valid = np.uint8(1 if st[S_PHASE] == 2.0 and not sat else 0)
     q.fault_detected = np.uint8(FAULT_BDS if t < st[S_FD_UNTIL] else 0)
     q.excluded = np.uint8(FAULT_BDS if t < st[S_EX_UNTIL] else 0)
 
@@ -244,6 +256,7 @@ def run_step(st, P, prm, xm, hist, dth, dvel, t_imu, o_t, o_v, o_ok, fixes, sol,
         _step(sins, th, dv, T)
         _stillness(st, th, dv, T)
         quat_dcm(st, S_SINS + 6, C)
+        standstill_feed(st[S_SS : S_SS + STILL_SIZE], C, th, dv, T, t, prm[P_STILL : P_STILL + STILL_PRM])
         for i in range(3):
             st[S_FN + i] += C[i, 0] * dv[0] + C[i, 1] * dv[1] + C[i, 2] * dv[2]
         st[S_TSINCE] += T
@@ -254,6 +267,11 @@ def run_step(st, P, prm, xm, hist, dth, dvel, t_imu, o_t, o_v, o_ok, fixes, sol,
             if not nav:
                 x = zupt_update(sins, P, st[S_P0 : S_P0 + 3], prm[P_ZUPT], prm[P_RP0])
                 _feedback(st, x)
+            elif not (prm[P_ODO] > 0.0 and st[S_OOK] > 0.0 and t - st[S_OT] <= prm[P_ODOTO]) \
+                    and standstill(st[S_SS : S_SS + STILL_SIZE], sins, t, prm[P_STILL : P_STILL + STILL_PRM]):
+                # standing without a fresh odometer (with one, its own zero-velocity update)
+                x = zero_velocity_update(sins, P, prm[P_STILL + 5])
+                _apply(st, x, xm)
         if not nav:
             while nf < fixes.shape[0] and fixes[nf, 0] <= t:  # fixes of the alignment: not used
                 nf += 1

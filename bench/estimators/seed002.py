@@ -42,7 +42,13 @@ from bench.dut.estimator import CanView
 from bench.errors import ConfigError
 from bench.estimators import seed002_kernel as K  # noqa: N812 - the kernel layout constants
 from bench.estimators.outblocks import OutputBlocks
-from bench.estimators.rest_alignment import RestAlignment, core_covariance
+from bench.estimators.rest_alignment import (
+    AT_REST_KEYS,
+    RestAlignment,
+    core_covariance,
+    standstill_parameters,
+    standstill_switch,
+)
 from bench.estimators.settings import period_ns, surveyed_position, vectors
 from bench.units import quantity
 
@@ -78,6 +84,7 @@ CONFIG_KEYS: dict[str, tuple[str, str, float]] = {
     "mounting_sigma": ("angle", "deg", 1.0),
     "scale_factor_walk": ("dimensionless", "1", 1e-6),
     "mounting_walk": ("angle", "deg", 1e-5),
+    **AT_REST_KEYS,
 }
 #: key -> (dimension, unit of a bare number, default (3,)); body RFU
 VECTOR_KEYS: dict[str, tuple[str, str, tuple[float, float, float]]] = {
@@ -86,7 +93,7 @@ VECTOR_KEYS: dict[str, tuple[str, str, tuple[float, float, float]]] = {
 }
 #: detection setting -> kernel code
 DETECTION = {"none": 0.0, "single_layer": 1.0, "two_layer": 2.0}
-_OTHER_KEYS = ("initial_position", "detection", "constraints", "log_diagnostics")
+_OTHER_KEYS = ("initial_position", "detection", "constraints", "log_diagnostics", "standstill_zupt")
 _EMPTY_I = np.zeros(0, np.int64)
 _NO_ODO = [_EMPTY_I, _EMPTY_I, _EMPTY_I, _EMPTY_I]
 _NO_DRV = [_EMPTY_I, _EMPTY_I, _EMPTY_I]
@@ -120,6 +127,7 @@ class Seed002(Estimator):
         self.prm = np.zeros(K.PRM_SIZE)
         self._rest = RestAlignment()
         self._out_ns = 10_000_000
+        self._standstill = True
         self._odo = _NO_ODO  # samples waiting for the IMU: rx_ns, pulses, reverse, valid (int64 columns)
         self._out = OutputBlocks()
         self.st[K.S_PULSE] = -1.0
@@ -177,6 +185,8 @@ class Seed002(Estimator):
         p[K.P_MOVE] = c["standing_travel"]
         p[K.P_OGAP] = 2.5e7  # 25 ms: more than one 10 ms sample missing
         p[K.P_LAT] = round(c["odometer_latency"] * 1e9)
+        self._standstill = standstill_switch(config)
+        p[K.P_STILL : K.PRM_SIZE] = standstill_parameters(c, self._standstill)
 
     # -- what the MC scripts read ------------------------------------------------------------
     @property
@@ -268,7 +278,7 @@ class Seed002(Estimator):
             self._odo = _NO_ODO
         self._rest.add(imu)
         out = self._rest.epochs(inputs.t_ns, self._out_ns, self.position, self.cfg["position_sigma"])
-        if self._rest.done(self.cfg["coarse_alignment"]):
+        if self._rest.done(self.cfg["coarse_alignment"], self.cfg, self.position[0]):  # type: ignore[index]
             self._start_fine(self._rest.last_ns)
         return out
 
@@ -284,8 +294,10 @@ class Seed002(Estimator):
         st[K.S_MODE] = MODE_ALIGNING
         st[K.S_LASTUPD] = -1e18
         st[K.S_TNOM] = self._rest.nominal_step_s()
-        diag = core_covariance(K.N_STATES, c, t_ns * 1e-9, lat)
-        diag[K.D_YAW] = diag[K.D_PITCH] = c["mounting_sigma"] ** 2
-        diag[K.D_K] = c["scale_factor_sigma"] ** 2
-        self.P[:, :] = np.diag(diag)
+        P = core_covariance(K.N_STATES, c, t_ns * 1e-9, lat, self._rest.cov)
+        P[K.D_YAW, K.D_YAW] = P[K.D_PITCH, K.D_PITCH] = c["mounting_sigma"] ** 2
+        P[K.D_K, K.D_K] = c["scale_factor_sigma"] ** 2
+        self.P[:, :] = P
+        self.prm[K.P_ZUPT] = self._rest.zupt_noise(c["zupt_noise"])
+        self.prm[K.P_STILL : K.PRM_SIZE] = standstill_parameters(c, self._standstill, self._rest)
         self._rest.finish()

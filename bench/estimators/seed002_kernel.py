@@ -25,7 +25,17 @@ from bench.dut import FAULT_ODOMETER, MODE_INERTIAL, MODE_ODOMETER
 from bench.estimators.ins_model import DV, N_CORE, PHI, discretize, ins_error_matrix
 from bench.estimators.kf import time_update
 from bench.estimators.seed002_meas import NOT_UPDATED, UPDATED_ALL, tested_update
-from bench.estimators.sins_core import core_feedback, quat_dcm, write_output, zupt_update
+from bench.estimators.sins_core import (
+    STILL_PRM,
+    STILL_SIZE,
+    core_feedback,
+    quat_dcm,
+    standstill,
+    standstill_feed,
+    write_output,
+    zero_velocity_update,
+    zupt_update,
+)
 from bench.nav.strapdown import _step
 
 __all__ = ["N_STATES", "ST_SIZE", "PRM_SIZE", "run_step", "MODEL_NAMES", "lever_model"]
@@ -65,7 +75,8 @@ S_W = 83  # 3: body rate of the last interval, rad/s
 S_LASTUPD = 86  # ns of the last odometer-based update
 S_VB = 87  # 3: body velocity at the odometer point, last frame (m/s)
 S_OCONS = 90  # odometer samples consumed by the last call (the rest wait for the IMU)
-ST_SIZE = 92
+S_STILL = 92  # STILL_SIZE: the standstill detector (bench.estimators.sins_core)
+ST_SIZE = S_STILL + STILL_SIZE
 
 # prm layout
 P_NG, P_NA, P_GB, P_AB, P_TU, P_OUT, P_ZUPT, P_RP0 = 0, 1, 2, 3, 4, 5, 6, 7
@@ -84,8 +95,8 @@ P_KQ, P_AQ = 28, 29  # random walks of the scale factor (1/sqrt(s)) and the moun
 P_MOVE = 30  # travel in a period below which the odometer counts as standing, m
 P_OGAP = 31  # ns: an odometer sample later than this after the last one means samples were lost
 P_LAT = 32  # odometer sample latency: sample time = arrival - this, ns
-PRM_SIZE = 34
-_SIGMA_ATT_MAX = 655.35 / 60.0 * math.pi / 180.0  # rad
+P_STILL = 34  # STILL_PRM: the standstill detector's parameters
+PRM_SIZE = P_STILL + STILL_PRM
 
 
 @njit(cache=True)
@@ -320,13 +331,9 @@ def _output(st: np.ndarray, P: np.ndarray, prm: np.ndarray, t: float, sol: np.nd
             k: int) -> None:
     r = sol[k]
     q = qual[k]
-    write_output(st, S_SINS, P, t, r, q)
-    for i in range(3):  # the ICD fields' full scale (a sigma beyond it says "at least")
-        q.sigma_pos[i] = min(q.sigma_pos[i], 655.35)
-        q.sigma_vel[i] = min(q.sigma_vel[i], 65.535)
-        q.sigma_att[i] = min(q.sigma_att[i], _SIGMA_ATT_MAX)
+    sat = write_output(st, S_SINS, P, t, r, q)  # sigmas at most the ICD's full scale
     r.mode = np.uint8(st[S_MODE])
-    r.valid = np.uint8(1 if st[S_PHASE] == 2.0 else 0)
+    r.valid = np.uint8(1 if st[S_PHASE] == 2.0 and not sat else 0)
     q.fault_detected = np.uint8(FAULT_ODOMETER if st[S_FD] > 0.0 else 0)
     q.excluded = np.uint8(FAULT_ODOMETER if st[S_EX] > 0.0 else 0)
     q.odo_fault_class = np.uint8(st[S_CLS])
@@ -362,6 +369,7 @@ def run_step(st, P, prm, dth, dvel, t_imu, o_t, o_p, o_r, o_ok, d_t, d_l, d_r, s
             st[S_W + i] = th[i] / T
         _step(sins, th, dv, T)
         quat_dcm(st, S_SINS + 6, C)
+        standstill_feed(st[S_STILL : S_STILL + STILL_SIZE], C, th, dv, T, t, prm[P_STILL : P_STILL + STILL_PRM])
         for i in range(3):
             st[S_FN + i] += C[i, 0] * dv[0] + C[i, 1] * dv[1] + C[i, 2] * dv[2]
         st[S_TSINCE] += T
@@ -372,6 +380,11 @@ def run_step(st, P, prm, dth, dvel, t_imu, o_t, o_p, o_r, o_ok, d_t, d_l, d_r, s
             _time_update(st, P, prm, st[S_TSINCE])
             if not nav:
                 x = zupt_update(sins, P, st[S_P0 : S_P0 + 3], prm[P_ZUPT], prm[P_RP0])
+                _feedback(st, x)
+            elif not (st[S_PULSE] >= 0.0 and t - st[S_OT] <= prm[P_OGAP]) \
+                    and standstill(st[S_STILL : S_STILL + STILL_SIZE], sins, t, prm[P_STILL : P_STILL + STILL_PRM]):
+                # standing without the odometer (its own samples say standing when it reports)
+                x = zero_velocity_update(sins, P, prm[P_STILL + 5])
                 _feedback(st, x)
         if not nav and t >= st[S_ALIGN_END]:
             _catch_up(st, P, prm)

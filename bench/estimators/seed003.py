@@ -40,7 +40,13 @@ from bench.estimators import seed003_kernel as K  # noqa: N812 - the compiled st
 from bench.estimators import seed003_state as L  # noqa: N812 - the layouts of its state
 from bench.estimators.fixes import FIX_COLS, take_fixes
 from bench.estimators.outblocks import OutputBlocks
-from bench.estimators.rest_alignment import RestAlignment, core_covariance
+from bench.estimators.rest_alignment import (
+    AT_REST_KEYS,
+    RestAlignment,
+    core_covariance,
+    standstill_parameters,
+    standstill_switch,
+)
 from bench.estimators.settings import period_ns, surveyed_position, vectors
 from bench.nav.ecef import from_geographic
 from bench.nav.rotation import euler_to_quat
@@ -77,6 +83,7 @@ CONFIG_KEYS: dict[str, tuple[str, str, float]] = {
     "initial_heading_sigma": ("angle", "arcmin", 5.0),
     "initial_velocity_sigma": ("velocity", "m/s", 0.1),
     "initial_position_sigma": ("length", "m", 10.0),
+    **AT_REST_KEYS,
 }
 #: key -> (dimension, unit of a bare number, default (3,))
 VECTOR_KEYS: dict[str, tuple[str, str, tuple[float, float, float]]] = {
@@ -85,7 +92,7 @@ VECTOR_KEYS: dict[str, tuple[str, str, tuple[float, float, float]]] = {
 }
 _SWITCHES = {"filter_conversion": True, "auto_switch": True, "velocity_aid": True, "log_diagnostics": False}
 _CHOICES = {"start": ("rest", "moving"), "unconverted": ("restart", "copy")}
-_OTHER_KEYS = ("initial_position",)
+_OTHER_KEYS = ("initial_position", "standstill_zupt")
 _EMPTY_I = np.zeros(0, np.int64)
 _EMPTY_F = np.zeros(0)
 _DOP_COLUMNS = ("rx_ns", "speed", "valid")
@@ -112,6 +119,7 @@ class Seed003(Estimator):
         self._started = False
         self._held: np.ndarray | None = None  # a moving start's first frame until a second one comes
         self._out_ns = 10_000_000
+        self._standstill = True
         self._out = OutputBlocks()
 
     # -- configuration -------------------------------------------------------------------
@@ -173,6 +181,8 @@ class Seed003(Estimator):
         p[L.P_S0 : L.P_S0 + 9] = [lvl, lvl, hdg, *([c["initial_velocity_sigma"]] * 3),
                                   *([c["initial_position_sigma"]] * 3)]
         p[L.P_VEL] = 1.0 if self.switch["velocity_aid"] else 0.0
+        self._standstill = standstill_switch(config)
+        p[L.P_STILL : L.PRM_SIZE] = standstill_parameters(c, self._standstill)
 
     # -- what tests and scripts read -----------------------------------------------------------
     @property
@@ -224,7 +234,7 @@ class Seed003(Estimator):
         if self.choice["start"] == "rest" and self._rest.coarse:
             self._rest.add(imu)
             out = self._rest.epochs(inputs.t_ns, self._out_ns, self.position, self.cfg["position_sigma"])
-            if self._rest.done(self.cfg["coarse_alignment"]):
+            if self._rest.done(self.cfg["coarse_alignment"], self.cfg, self.position[0]):
                 self._start_fine(self._rest.last_ns)
             self._cmd_t, self._cmd_code = self._cmd_t[:0], self._cmd_code[:0]  # none applies while aligning
             return out
@@ -275,7 +285,9 @@ class Seed003(Estimator):
         st[L.S_P0 : L.S_P0 + 3] = lat, lon, h
         st[L.S_TNOM] = self._rest.nominal_step_s()
         st[L.S_LAST_BDS] = st[L.S_LAST_VEL] = -1e18
-        self.P[:, :] = np.diag(core_covariance(L.N_STATES, c, t_ns * 1e-9, lat))
+        self.P[:, :] = core_covariance(L.N_STATES, c, t_ns * 1e-9, lat, self._rest.cov)
+        self.prm[L.P_ZUPT] = self._rest.zupt_noise(c["zupt_noise"])
+        self.prm[L.P_STILL : L.PRM_SIZE] = standstill_parameters(c, self._standstill, self._rest)
         self._rest.finish()
         self._started = True
 

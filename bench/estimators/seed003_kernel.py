@@ -60,6 +60,7 @@ from bench.estimators.seed003_state import (
     P_QG,
     P_RP0,
     P_S0,
+    P_STILL,
     P_SWLAT,
     P_TU,
     P_VEL,
@@ -84,6 +85,7 @@ from bench.estimators.seed003_state import (
     S_P0,
     S_PHASE,
     S_SINS,
+    S_STILL,
     S_TLAST,
     S_TNOM,
     S_TSINCE,
@@ -97,7 +99,12 @@ from bench.estimators.seed003_state import (
     output_mode,
 )
 from bench.estimators.sins_core import (
+    STILL_PRM,
+    STILL_SIZE,
     quat_dcm,
+    standstill,
+    standstill_feed,
+    zero_velocity_update,
     zupt_update,
 )
 from bench.nav.ecef import enu_frame, from_geographic, geodetic, grid_frame, step_e, to_geographic
@@ -261,6 +268,10 @@ def run_step(
         else:
             step_e(sins, th, dv, T)
         quat_dcm(st, S_SINS + 6, C)
+        if st[S_FRAME] == FRAME_GEOGRAPHIC:
+            standstill_feed(st[S_STILL : S_STILL + STILL_SIZE], C, th, dv, T, t, prm[P_STILL : P_STILL + STILL_PRM])
+        else:  # the detector's horizontal is ENU's: no standstill in the grid frame
+            st[S_STILL + 6] = -1.0
         for i in range(3):
             st[S_FN + i] += C[i, 0] * dv[0] + C[i, 1] * dv[1] + C[i, 2] * dv[2]
         st[S_TSINCE] += T
@@ -289,6 +300,10 @@ def run_step(
             _time_update(st, P, prm, st[S_TSINCE])
             if not nav:
                 x = zupt_update(sins, P, st[S_P0 : S_P0 + 3], prm[P_ZUPT], prm[P_RP0])
+                feedback(st, x)
+            elif standstill(st[S_STILL : S_STILL + STILL_SIZE], sins, t, prm[P_STILL : P_STILL + STILL_PRM]) \
+                    and not (st[S_DOK] > 0.0 and t - st[S_DT] <= prm[P_DOPTO] and abs(st[S_DV]) > prm[P_STILL + 4]):
+                x = zero_velocity_update(sins, P, prm[P_STILL + 5])  # standing (the Doppler, if any, reads ~0)
                 feedback(st, x)
         if not nav and t >= st[S_ALIGN_END]:
             _catch_up(st, P, prm)

@@ -6,14 +6,14 @@ matrices, the closed-loop feedback, the output epoch (geographic whatever the fr
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
 from bench.dut import MODE_ALIGNING, MODE_BDS, MODE_DOPPLER, MODE_INERTIAL, MODE_MULTI_SENSOR
 from bench.estimators.ins_model import DR, DV, EPS, N_CORE, NABLA, PHI
 from bench.estimators.sins_core import (
+    STILL_PRM,
+    STILL_SIZE,
     core_feedback,
     quat_dcm,
     rotate_attitude,
@@ -42,7 +42,8 @@ S_NSWITCH, S_NREFUSED, S_NBDS, S_NREJ, S_NVEL = 47, 48, 49, 50, 51  # counters
 S_CONSUMED, S_CCONSUMED = 52, 53  # fixes, commands consumed in this call
 S_NIS, S_TSWITCH = 54, 55  # last position NIS; ns of the last switch
 S_W = 56  # 3: body rate of the last interval, rad/s
-ST_SIZE = 64
+S_STILL = 64  # STILL_SIZE: the standstill detector (bench.estimators.sins_core; geographic frame only)
+ST_SIZE = S_STILL + STILL_SIZE
 
 # prm layout
 P_NG, P_NA, P_QG, P_QA, P_TU, P_OUT, P_ZUPT, P_RP0 = 0, 1, 2, 3, 4, 5, 6, 7
@@ -51,9 +52,9 @@ P_RDOP, P_RNHC, P_VELPER, P_DOPTO = 13, 14, 15, 16  # velocity aid sigmas (m/s),
 P_GATE, P_AGE, P_RPOS = 17, 18, 19  # position chi-square gate (0 off), aiding age (ns), sigma floor (m)
 P_S0 = 20  # 9: restart sigmas of attitude (E, N, U rad), velocity (m/s), position (m, E N U)
 P_VEL = 29  # 1: use the velocity aid
-PRM_SIZE = 32
+P_STILL = 32  # STILL_PRM: the standstill detector's parameters
+PRM_SIZE = P_STILL + STILL_PRM
 
-_SIGMA_ATT_MAX = 655.35 / 60.0 * math.pi / 180.0  # rad: NAV_QUALITY's largest attitude sigma
 # cos^2 L sin^2 lon above this: the grid frame's north (u x y_e) is too short to be defined
 _GRID_SINGULAR = 0.99
 
@@ -108,7 +109,7 @@ def nav_dcm_velocity(st: np.ndarray, C: np.ndarray, v: np.ndarray) -> None:
 def output(st: np.ndarray, P: np.ndarray, t: float, r, q) -> None:
     """One epoch, geographic whatever the frame (ICD 2.2); byte 44's frame bits."""
     if st[S_FRAME] == FRAME_GEOGRAPHIC:
-        write_output(st, S_SINS, P, t, r, q)
+        sat = write_output(st, S_SINS, P, t, r, q)
     else:
         CeG = np.empty((3, 3))
         Cen = np.empty((3, 3))
@@ -124,15 +125,11 @@ def output(st: np.ndarray, P: np.ndarray, t: float, r, q) -> None:
         write_attitude(C, r)
         q.t_ns = np.int64(t)
         M = Cen @ CeG.T  # G to ENU
-        write_sigmas(q, C, Cen @ P[DR : DR + 3, DR : DR + 3] @ Cen.T, M @ P[DV : DV + 3, DV : DV + 3] @ M.T,
-                     M @ P[PHI : PHI + 3, PHI : PHI + 3] @ M.T)
-    for i in range(3):
-        q.sigma_pos[i] = min(q.sigma_pos[i], 655.35)
-        q.sigma_vel[i] = min(q.sigma_vel[i], 65.535)
-        q.sigma_att[i] = min(q.sigma_att[i], _SIGMA_ATT_MAX)
+        sat = write_sigmas(q, C, Cen @ P[DR : DR + 3, DR : DR + 3] @ Cen.T, M @ P[DV : DV + 3, DV : DV + 3] @ M.T,
+                           M @ P[PHI : PHI + 3, PHI : PHI + 3] @ M.T)
     r.frame = np.uint8(st[S_FRAME])
     r.mode = np.uint8(st[S_MODE])
-    r.valid = np.uint8(1 if st[S_PHASE] == 2.0 else 0)
+    r.valid = np.uint8(1 if st[S_PHASE] == 2.0 and not sat else 0)  # a sigma beyond full scale: not valid
 
 
 @njit(cache=True)
