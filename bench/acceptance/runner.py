@@ -83,13 +83,21 @@ _BUILTIN = {
 }
 
 
+#: the runner of cases built on field logs (the DUT kinds of the run engine)
+LOG_CASE_RUNNER = "bench.exchange.log_case:LogCaseRunner"
+
+
 def register_runner(dut_kind: str, factory: Callable[[], CaseRunner]) -> None:
     """Make ``factory()`` the runner of cases whose ``[dut] kind`` is ``dut_kind``."""
     _FACTORIES[dut_kind] = factory
 
 
 def runner_for(case: TestCase) -> CaseRunner:
-    """The runner of ``case`` (registered, from an entry point, or built in)."""
+    """The runner of ``case`` (registered, from an entry point, or built in; a case built
+    on field logs, ``[scenario] log``, runs with the log-case runner whatever its DUT kind)."""
+    if case.scenario.log is not None:
+        mod, _, attr = LOG_CASE_RUNNER.partition(":")
+        return getattr(import_module(mod), attr)()
     kind = case.dut.kind
     if kind not in _FACTORIES:
         for ep in entry_points(group=ENTRY_POINT_GROUP):

@@ -124,6 +124,9 @@ def build_case(
         faults = _fault_files(top, fault_files, faults, base)
     commands = tuple(_command(t) for t in top.tables("command"))
     dut = _dut(top.table("dut", required=True), base, check_files)  # type: ignore[arg-type]
+    if scenario.log is not None and dut.kind not in ("in_process", "external", "hardware"):
+        raise ConfigError(f"a case built on field logs ([scenario] log) replays them into an in_process, external or "
+                          f"hardware DUT, not {dut.kind!r}", file=file, key="dut.kind")
     clock = clock_spec(top.table("clock"))
     run = run_spec(top.table("run"))
     scoring = scoring_settings(top.table("scoring"), dut, clock, base, check_files)

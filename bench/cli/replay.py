@@ -204,7 +204,7 @@ def _say_source(provider, quiet: bool) -> None:
 
 
 def _log_replay(args: argparse.Namespace, lockstep: bool, faults):
-    from bench.run.fieldopen import FieldLogOptions, open_field_logs
+    from bench.exchange.fieldopen import FieldLogOptions, open_field_logs
     from bench.textsafe import for_terminal
 
     def path(value: str | None) -> Path | None:

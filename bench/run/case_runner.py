@@ -24,13 +24,12 @@ from bench.acceptance.runner import (
 )
 from bench.clock.pacing import TimingBudget
 from bench.errors import ConfigError
-from bench.run.engine import RunResult, execute, run
-from bench.run.fieldopen import FieldLogOptions, open_field_logs
+from bench.run.engine import RunResult, run
 from bench.run.spec import ClockSpec, DutSpec, LinkSpec, RunSpec
 from bench.run.traffic import COMMAND_CODES
 from bench.scenario.loader import Scenario, load_scenario
 
-__all__ = ["EngineRunner", "spec_from_case", "log_options", "run_log_case"]
+__all__ = ["EngineRunner", "spec_from_case", "case_clock", "case_dut", "case_links"]
 
 
 def _scenario(case: TestCase) -> Scenario:
@@ -59,6 +58,11 @@ def _links(table: dict[str, Any]) -> LinkSpec:
                     gnss=gnss, talker=talker)
 
 
+def case_links(case: TestCase) -> LinkSpec:
+    """The links of a case's runs."""
+    return _links({k: dict(v) for k, v in case.dut.links.items()})
+
+
 def _budget(case: TestCase) -> TimingBudget | None:
     c = case.clock
     if c.budget_ns is None and c.budget_p99_ns is None:
@@ -75,12 +79,12 @@ def spec_from_case(case: TestCase, seed: int, out_dir: Path) -> RunSpec:
         scenario=scenario,
         tables=sensor_tables(case, scenario.doc),
         schedule=case.faults,
-        dut=_dut(case),
+        dut=case_dut(case),
         out=Path(out_dir) / recording_name(case, seed),
         seed=seed,
         commands=[(c.t_ns, COMMAND_CODES[c.command]) for c in case.commands],
         links=_links({k: dict(v) for k, v in dut.links.items()}),
-        clock=_clock(case),
+        clock=case_clock(case),
         truth_rate_hz=case.run.truth_rate_hz,
         duration_ns=round(case.scenario.duration_s * 1e9) if case.scenario.duration_s is not None else None,
         run_start=run_start_metadata(case, seed, f"engine/{dut.kind}"),
@@ -88,7 +92,8 @@ def spec_from_case(case: TestCase, seed: int, out_dir: Path) -> RunSpec:
     )
 
 
-def _clock(case: TestCase) -> ClockSpec:
+def case_clock(case: TestCase) -> ClockSpec:
+    """The clock of a case's runs."""
     return ClockSpec(
         mode=case.clock.mode,
         step_ns=case.clock.step_ns,
@@ -98,7 +103,8 @@ def _clock(case: TestCase) -> ClockSpec:
     )
 
 
-def _dut(case: TestCase) -> DutSpec:
+def case_dut(case: TestCase) -> DutSpec:
+    """The DUT of a case's runs (its configuration file found beside the case)."""
     dut = case.dut
     config = dict(dut.config)
     if dut.config_file:
@@ -108,48 +114,18 @@ def _dut(case: TestCase) -> DutSpec:
                    startup_timeout_s=dut.startup_timeout_s, shutdown_timeout_s=dut.shutdown_timeout_s, cwd=base)
 
 
-def log_options(case: TestCase, seed: int) -> FieldLogOptions:
-    """The ``bench replay`` options of a case built on field logs (``[scenario] log``)."""
-    log = case.scenario.log
-    assert log is not None
-
-    def path(name: str) -> Path | None:
-        return case.scenario.resolve(log[name]) if name in log else None
-
-    return FieldLogOptions(
-        can_log=path("can"), imu_log=path("imu"), imu_format=log.get("imu_format"), gnss_log=path("gnss"),
-        gnss_format=log.get("gnss_format"), epoch=log.get("epoch"), gps_week=log.get("gps_week"),
-        truth=path("truth"), truth_format=log.get("truth_format") or "smartloc",
-        truth_time=log.get("truth_time") or "bench", seed=seed, key_prefix="scenario.log.")
-
-
-def run_log_case(case: TestCase, seed: int, out_dir: Path, progress: Progress | None = None) -> RunResult:
-    """One run of a case built on field logs: the logs replayed into the case's DUT as
-    ``bench replay --case`` does, the case attached so that ``bench score`` judges it."""
-    from bench.run.imu_rate import check_replay
-
-    clock = _clock(case)
-    notes: list[str] = []
-    provider = open_field_logs(log_options(case, seed), lockstep=clock.lockstep,
-                               faults=case.faults if len(case.faults) else None, say=notes.append, quiet=True)
-    check_replay(provider, None, case)  # the log at the rate the case declares, if it does
-    meta = run_start_metadata(case, seed, f"engine/{case.dut.kind}", field_log_notes=notes)
-    return execute(provider, _dut(case), _links({k: dict(v) for k, v in case.dut.links.items()}), clock,
-                   Path(out_dir) / recording_name(case, seed), run_start=meta, attachments=case_attachments(case),
-                   progress=progress)
-
-
 class EngineRunner:
     """The run engine as an acceptance runner (DUT kinds ``in_process``, ``external`` and
-    ``hardware``), for synthesized drives and for cases built on field logs."""
+    ``hardware``) of synthesized drives (cases built on field logs:
+    :class:`bench.exchange.log_case.LogCaseRunner`)."""
 
     last: RunResult | None = None
 
     def run(self, case: TestCase, seed: int, out_dir: Path, *, progress: Progress | None = None) -> Path:
         """One run of ``case``; the recording says how it ended."""
         if case.scenario.log is not None:
-            result = run_log_case(case, seed, Path(out_dir), progress)
-        else:
-            result = run(spec_from_case(case, seed, Path(out_dir)), progress)
+            raise ConfigError("a case built on field logs runs with bench.exchange.log_case.LogCaseRunner",
+                              file=case.file, key="scenario.log")
+        result = run(spec_from_case(case, seed, Path(out_dir)), progress)
         self.last = result
         return result.path
