@@ -115,7 +115,9 @@ def test_a_rate_change_is_refused_but_lost_frames_and_jitter_are_not():
 def test_seed001_keeps_2_s_of_ins_history_at_1_khz():
     """The history a delayed BDS fix is placed in: 400 states are 2 s at 200 Hz, 0.4 s at
     1 kHz; it is sized by the measured interval."""
-    est = create_estimator("seed001", {"initial_position": [30.0, 110.0, 50.0], "coarse_alignment": "2 s"})
+    # the coarse period ends by half the alignment at the latest, then the history is sized
+    est = create_estimator("seed001", {"initial_position": [30.0, 110.0, 50.0], "coarse_alignment": "2 s",
+                                        "alignment": "4 s"})
     imu = _frames(np.arange(1, 3001) * 1_000_000)
     imu["dvel"][:, 2] = 9.79e-3  # at rest, level, heading north: gravity and the Earth's rate
     imu["dtheta"][:, 1] = 7.292115e-5 * math.cos(math.radians(30.0)) * 1e-3
