@@ -29,7 +29,7 @@ from numba import njit
 
 from bench.estimators.ins_model import DR, DV, PHI, position_difference
 from bench.estimators.kf import joseph_update
-from bench.estimators.sins_core import quat_dcm
+from bench.estimators.sins_core import quat_dcm, zero_velocity  # zero_velocity: re-exported, shared
 
 __all__ = ["N_STATES", "DK", "DDT", "MK", "H_COLS", "hist_push", "hist_at", "bds_update", "nhc_update", "zero_velocity"]
 
@@ -190,18 +190,4 @@ def nhc_update(
             H[i, PHI + j] = Mphi[i, j]
         R[i, i] = r[i] ** 2
     H[1, DK] = -speed
-    joseph_update(x, P, z, H, R)
-
-
-@njit(cache=True)
-def zero_velocity(P: np.ndarray, x: np.ndarray, sins: np.ndarray, sigma: float) -> None:
-    """Zero-velocity update (the vehicle stopped): the ENU velocity measured zero."""
-    n = P.shape[0]
-    z = np.zeros(3)
-    H = np.zeros((3, n))
-    R = np.zeros((3, 3))
-    for i in range(3):
-        z[i] = sins[3 + i]
-        H[i, DV + i] = 1.0
-        R[i, i] = sigma**2
     joseph_update(x, P, z, H, R)

@@ -38,6 +38,7 @@ __all__ = [
     "write_output",
     "write_attitude",
     "write_sigmas",
+    "zero_velocity",
     "zero_velocity_update",
     "standstill_feed",
     "standstill",
@@ -136,9 +137,10 @@ def zupt_update(sins: np.ndarray, P: np.ndarray, p0: np.ndarray, sigma_v: float,
 
 
 @njit(cache=True)
-def zero_velocity_update(sins: np.ndarray, P: np.ndarray, sigma_v: float) -> np.ndarray:
-    """A standstill: the ENU velocity measured zero (noise ``sigma_v``) on the core states
-    of ``P``. Returns the estimate (n,) to feed back."""
+def zero_velocity(P: np.ndarray, x: np.ndarray, sins: np.ndarray, sigma: float) -> None:
+    """Zero-velocity update (the vehicle stands): the ENU velocity of the SINS state
+    ``sins`` measured zero (noise ``sigma``) on the core states of ``P``, into the estimate
+    ``x`` (n,)."""
     n = P.shape[0]
     z = np.zeros(3)
     H = np.zeros((3, n))
@@ -146,9 +148,16 @@ def zero_velocity_update(sins: np.ndarray, P: np.ndarray, sigma_v: float) -> np.
     for i in range(3):
         z[i] = sins[3 + i]
         H[i, DV + i] = 1.0
-        R[i, i] = sigma_v**2
-    x = np.zeros(n)
+        R[i, i] = sigma**2
     joseph_update(x, P, z, H, R)
+
+
+@njit(cache=True)
+def zero_velocity_update(sins: np.ndarray, P: np.ndarray, sigma_v: float) -> np.ndarray:
+    """A standstill: :func:`zero_velocity` from a zero estimate. Returns the estimate (n,)
+    to feed back."""
+    x = np.zeros(P.shape[0])
+    zero_velocity(P, x, sins, sigma_v)
     return x
 
 
