@@ -109,16 +109,29 @@ def _parse(raw: bytes) -> dict[str, Any] | None:
     return data if isinstance(data, dict) else None
 
 
+#: How long an empty or unreadable lock file is read again before it counts as empty or
+#: unreadable: a holder on another host that rewrites its file by truncating it first (not
+#: the bench's own, which overwrites in place) leaves it empty or half written for an instant.
+_SETTLE_S = 0.3
+
+
 def _holder(path: Path) -> dict[str, Any] | None:
-    """The holder a lock file names (read again once should it be caught mid-write)."""
-    for _ in range(3):
+    """The holder a lock file names; None only for a file found empty at every read over
+    :data:`_SETTLE_S` (one caught mid-write, empty or half written, is read again)."""
+    end = time.monotonic() + _SETTLE_S
+    unreadable = False
+    while True:
         raw = _read(path)
-        if not raw.strip():
-            return None
-        if (data := _parse(raw)) is not None:
-            return data
-        time.sleep(0.05)
-    return {"host": "?", "pid": "?", "started_utc": "?", "command": f"unreadable lock file {path}"}
+        if raw.strip():
+            if (data := _parse(raw)) is not None:
+                return data
+            unreadable = True
+        if time.monotonic() >= end:
+            break
+        time.sleep(0.03)
+    if unreadable:
+        return {"host": "?", "pid": "?", "started_utc": "?", "command": f"unreadable lock file {path}"}
+    return None
 
 
 def _flock(fd: int, mode: int) -> bool | None:

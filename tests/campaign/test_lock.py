@@ -95,11 +95,14 @@ def test_a_lock_of_another_host_whose_heartbeat_goes_on_is_refused(tmp_path):
     path.write_text(json.dumps(alive))
     done = threading.Event()
 
-    def beat() -> None:
+    def beat() -> None:  # a holder that truncates its file before each rewrite: empty for an instant
         while not done.is_set():
             alive["beat"] += 1
-            path.write_text(json.dumps(alive))
-            time.sleep(0.005)
+            with open(path, "w") as fh:
+                fh.flush()
+                time.sleep(0.002)
+                fh.write(json.dumps(alive))
+            time.sleep(0.01)
 
     t = threading.Thread(target=beat)
     t.start()
