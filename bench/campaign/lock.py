@@ -112,7 +112,7 @@ def _parse(raw: bytes) -> dict[str, Any] | None:
 #: How long an empty or unreadable lock file is read again before it counts as empty or
 #: unreadable: a holder on another host that rewrites its file by truncating it first (not
 #: the bench's own, which overwrites in place) leaves it empty or half written for an instant.
-_SETTLE_S = 0.3
+_SETTLE_S = 0.2
 
 
 def _holder(path: Path) -> dict[str, Any] | None:
@@ -215,14 +215,17 @@ def acquire(folder: str | Path, command: str | None = None, *, notice: Callable[
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / LOCK_NAME
-    fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+    try:  # a file this call creates names nobody: no need to wait for a holder's rewrite
+        fd, created = os.open(path, os.O_RDWR | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o644), True
+    except FileExistsError:
+        fd, created = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644), False
     try:
         end = time.monotonic() + _RETRY_S
         while (locked := _flock(fd, fcntl.LOCK_EX)) is False and time.monotonic() < end:
             time.sleep(0.02)
         if locked is False:
             raise CampaignHeldError(folder, _holder(path))
-        prev = _holder(path)
+        prev = None if created and locked and not _read(path).strip() else _holder(path)
         if prev is not None and not (locked and _same_kernel(prev)):
             # another kernel's campaign (or no locks here): only its heartbeat tells whether it lives
             notice(f"bench campaign: {path} names a campaign this host cannot check ({describe(prev)}) and its "
