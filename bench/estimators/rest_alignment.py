@@ -144,6 +144,12 @@ class RestAlignment:
         T = self.last_ns * 1e-9
         return dcm_to_quat(coarse_align(self.sum_dv / T, self.sum_th / T, lat))
 
+    @property
+    def coarse_C_bn(self) -> np.ndarray | None:
+        """The inertial-frame fit's C_bn (body to ENU) at the last frame, None without one
+        (the covariance's heading-bias correlation, :func:`core_covariance`)."""
+        return None if self.fit is None else self.fit.C_bn
+
     def zupt_noise(self, configured: float) -> float:
         """The zero-velocity noise of the fine alignment (m/s): the configured one, or the
         velocity disturbance the coarse fit measured (rocking, vibration; its
@@ -199,13 +205,22 @@ def coarse_covariance(fit: InertialFit, earlier: list[InertialFit], cfg: dict[st
 
 
 def core_covariance(n: int, cfg: dict[str, float], coarse_s: float, lat: float,
-                    attitude: np.ndarray | None = None) -> np.ndarray:
+                    attitude: np.ndarray | None = None, C_bn: np.ndarray | None = None) -> np.ndarray:
     """The (n, n) covariance the fine alignment starts from, the core 15 states filled
     (the rest zero): the attitude block from the coarse alignment's own accuracy
     (``attitude``, (3, 3), :attr:`RestAlignment.cov`; without it the former generous
     figures: level from the accelerometer bias, heading from the gyro noise over
     ``coarse_s``), 1 cm/s, the surveyed ``position_sigma``, the bias priors. ``cfg`` holds
-    ``accel_bias``, ``gyro_noise``, ``gyro_bias`` and ``position_sigma`` in SI."""
+    ``accel_bias``, ``gyro_noise``, ``gyro_bias`` and ``position_sigma`` in SI.
+
+    With the coarse attitude ``C_bn`` (body to ENU) too, the heading error and the gyro
+    bias states are correlated as the coarse alignment made them: at rest it finds the
+    heading at which the east gyro bias balances the Earth rate, phi_U = -eps_E / (Omega
+    cos lat) (phi as in C_true = (I + [phi x]) C), so cov(phi_U, eps_b) = -C_bn[0, :]
+    sigma_b^2 / (Omega cos lat). Without it the fine alignment, which sees the same
+    unobservable sum of heading and east bias, splits that sum by the prior's ratio and
+    pulls the heading towards the coarse period's noise (S000: 5.5' after the alignment
+    where the gyrocompassing limit is 3.8')."""
     P = np.zeros((n, n))
     if attitude is not None:
         P[0:3, 0:3] = attitude
@@ -218,6 +233,11 @@ def core_covariance(n: int, cfg: dict[str, float], coarse_s: float, lat: float,
         P[6 + i, 6 + i] = cfg["position_sigma"] ** 2
         P[9 + i, 9 + i] = cfg["gyro_bias"] ** 2
         P[12 + i, 12 + i] = cfg["accel_bias"] ** 2
+    if attitude is not None and C_bn is not None:
+        wn = _EARTH_RATE * max(math.cos(lat), 1e-3)
+        cross = -np.asarray(C_bn, dtype=float)[0, :] * cfg["gyro_bias"] ** 2 / wn
+        P[2, 9:12] = cross
+        P[9:12, 2] = cross
     return P
 
 

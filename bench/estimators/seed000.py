@@ -203,7 +203,7 @@ class Seed000(Estimator):
         st[K.S_P0 : K.S_P0 + 3] = lat, lon, h
         st[K.S_MODE] = MODE_ALIGNING
         st[K.S_TNOM] = self._rest.nominal_step_s()
-        self.P[:, :] = core_covariance(K.N_STATES, c, t_ns * 1e-9, lat, self._rest.cov)
+        self.P[:, :] = core_covariance(K.N_STATES, c, t_ns * 1e-9, lat, self._rest.cov, self._rest.coarse_C_bn)
         self.prm[K.P_ZUPT] = self._rest.zupt_noise(c["zupt_noise"])
         self.prm[K.P_STILL : K.PRM_SIZE] = standstill_parameters(c, self._standstill, self._rest)
         self._rest.finish()

@@ -284,7 +284,7 @@ class Seed001(Estimator):
         st[K.S_TNOM] = self._rest.nominal_step_s()
         # the INS history holds 2 s at the measured rate (HIST_LEN: 2 s at 200 Hz, the least kept)
         self.hist = np.zeros((max(K.HIST_LEN, math.ceil(2.0 / st[K.S_TNOM] - 1e-9)), 14))
-        P = core_covariance(K.N_STATES, c, t_ns * 1e-9, lat, self._rest.cov)
+        P = core_covariance(K.N_STATES, c, t_ns * 1e-9, lat, self._rest.cov, self._rest.coarse_C_bn)
         P[DK, DK] = c["odometer_scale_sigma"] ** 2
         P[DDT, DDT] = c["time_offset_sigma"] ** 2 if self.switch["time_offset_estimation"] else 0.0
         for i in range(3):

@@ -294,7 +294,7 @@ class Seed002(Estimator):
         st[K.S_MODE] = MODE_ALIGNING
         st[K.S_LASTUPD] = -1e18
         st[K.S_TNOM] = self._rest.nominal_step_s()
-        P = core_covariance(K.N_STATES, c, t_ns * 1e-9, lat, self._rest.cov)
+        P = core_covariance(K.N_STATES, c, t_ns * 1e-9, lat, self._rest.cov, self._rest.coarse_C_bn)
         P[K.D_YAW, K.D_YAW] = P[K.D_PITCH, K.D_PITCH] = c["mounting_sigma"] ** 2
         P[K.D_K, K.D_K] = c["scale_factor_sigma"] ** 2
         self.P[:, :] = P

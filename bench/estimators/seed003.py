@@ -285,7 +285,7 @@ class Seed003(Estimator):
         st[L.S_P0 : L.S_P0 + 3] = lat, lon, h
         st[L.S_TNOM] = self._rest.nominal_step_s()
         st[L.S_LAST_BDS] = st[L.S_LAST_VEL] = -1e18
-        self.P[:, :] = core_covariance(L.N_STATES, c, t_ns * 1e-9, lat, self._rest.cov)
+        self.P[:, :] = core_covariance(L.N_STATES, c, t_ns * 1e-9, lat, self._rest.cov, self._rest.coarse_C_bn)
         self.prm[L.P_ZUPT] = self._rest.zupt_noise(c["zupt_noise"])
         self.prm[L.P_STILL : L.PRM_SIZE] = standstill_parameters(c, self._standstill, self._rest)
         self._rest.finish()
