@@ -17,8 +17,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import pytest
-
 from bench.report.results import validate_results
 from tests.fault_matrix.matrix import bench
 
@@ -183,12 +181,13 @@ def test_several_runs_each_side_are_judged_over_runs(tmp_path):
 def test_a_real_regression_on_the_same_seeds_still_exits_1(tmp_path):
     r, doc = _compare(tmp_path, _demo((1, 2)), _demo((1, 2), shift=2.0))
     assert r.code == 1 and _last(r) == "REGRESSION (12)", r.text  # 12 criteria; case verdicts stay PASS
-    assert "seed sets differ" not in r.out
+    assert "seeds: the same in every case and variant compared" in r.out and "seed sets differ in" not in r.out
+    assert doc["summary"]["compared"] == 12 and doc["summary"]["seed_sets_differ"] == 0
 
 
 def test_a_regression_beside_other_seeds_and_missing_cases_is_counted_alone(tmp_path):
     a = _demo((1, 2))
-    b = _demo((1, 2), cases=("S000",)) + [_case("S001", _demo((5,), cases=("S001",))[0]["criteria"])]
+    b = [*_demo((1, 2), cases=("S000",)), *_demo((5,), cases=("S001",))]
     b[0]["criteria"][1]["runs"][1]["value"] += 1.0  # S000 DR-POS/full seed 2: 5.0 -> 6.0
     b[0]["criteria"][1]["value"] += 1.0
     r, doc = _compare(tmp_path, a, b)
