@@ -18,6 +18,7 @@ from bench.report.compare import (
     INCOMPARABLE,
     MISSING,
     NEW,
+    NOT_COMPARABLE,
     NOT_COMPARED,
     RUNS,
     SAME,
@@ -167,7 +168,7 @@ def _case_line(c: CaseRow) -> list[str]:
     if c.status == NOT_COMPARED:
         out.append(f"case {c.case}: not compared (in {c.side}): {c.verdict_a or '-'} -> {c.verdict_b or '-'}")
     elif c.verdict_change:
-        judged = "" if c.like else " (not judged: its variants or seeds differ; its criteria above are)"
+        judged = "" if c.like else " (not judged: its variants or seeds differ)"
         out.append(f"case {c.case}: case verdict {c.verdict_change}: {c.verdict_a} -> {c.verdict_b}{judged}")
     out += [f"case {_where(c.case, v)}: not compared (in {side})" for v, side in c.variants]
     return out
@@ -184,9 +185,14 @@ def verdict_line(cmp: Comparison) -> str:
     s = cmp.summary()
     if cmp.regressed:
         return f"REGRESSION ({s['regressions']})"
+    worse = sum(r.status == NOT_COMPARABLE and r.verdict_change == "worse" for r in cmp.rows)
+    also = f", {worse} of them with a worse verdict in B" if worse else ""
     if not cmp.compared:
         return ("nothing compared like with like: no criterion was run on the same case, variant and seeds "
-                "(or over enough runs) in A and B")
+                f"(or over enough runs) in A and B ({s['not_comparable']} not comparable{also})")
+    if s["not_comparable"]:
+        return (f"no regression among the {s['compared']} criteria compared like with like "
+                f"({s['not_comparable']} not comparable: seed sets differ{also})")
     return "no regression"
 
 

@@ -203,3 +203,16 @@ def test_a_case_that_ran_nothing_in_b_is_still_a_regression(tmp_path):
     r, doc = _compare(tmp_path, _demo((1, 2)), b)
     assert r.code == 1 and "REGRESSION" in _last(r), r.text
     assert all(c["regression"] for c in doc["criteria"] if c["case"] == "S000")
+
+
+def test_a_worse_verdict_among_other_seeds_is_shown_not_judged(tmp_path):
+    """B's seed 5 FAILs a criterion where A's seeds 1, 2 passed: another seed, so not a
+    regression -- but the last line says that a worse verdict sits among the not comparable."""
+    b = [*_demo((1, 2), cases=("S000", "S002")), *_demo((5,), shift=6.0, cases=("S001",))]
+    r, doc = _compare(tmp_path, _demo((1, 2)), b)
+    assert r.code == 0, r.text
+    assert _last(r) == ("no regression among the 8 criteria compared like with like (4 not comparable: seed sets "
+                        "differ, 2 of them with a worse verdict in B)"), r.out
+    assert "worse   S001 DR-POS/full: PASS -> FAIL [not comparable: seeds differ (A 1, 2; B 5)" in r.out, r.out
+    assert "case S001: case verdict worse: PASS -> FAIL (not judged: its variants or seeds differ)" in r.out, r.out
+    assert doc["summary"]["regressions"] == 0 and doc["summary"]["case_verdicts_worse"] == 0
