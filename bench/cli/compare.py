@@ -37,7 +37,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "compare",
         help="compare two results records (runs or suites): deltas, regressions, verdict changes",
         description="Compare results record B with reference A (results.json files or folders holding one): "
-        "every criterion's value, delta and verdict; exit 1 on a regression.",
+        "every criterion's value, delta and verdict, like with like only (the same case, variant and seeds; "
+        "other seeds are compared on their common seeds, judged over runs, or not comparable); exit 1 on a "
+        "regression, 3 when nothing could be compared.",
     )
     p.add_argument("a", help="reference results.json (or its folder)")
     p.add_argument("b", help="results.json to compare with the reference (or its folder)")

@@ -170,7 +170,8 @@ def _case_line(c: CaseRow) -> list[str]:
     elif c.verdict_change:
         judged = "" if c.like else " (not judged: its variants or seeds differ)"
         out.append(f"case {c.case}: case verdict {c.verdict_change}: {c.verdict_a} -> {c.verdict_b}{judged}")
-    out += [f"case {_where(c.case, v)}: not compared (in {side})" for v, side in c.variants]
+    out += [f"case {_where(c.case, v) if v else c.case + ' (its criteria without variant)'}: not compared (in {side})"
+            for v, side in c.variants]
     return out
 
 
