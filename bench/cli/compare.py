@@ -4,9 +4,15 @@ A and B are results records (``results.json`` of ``bench accept -o DIR``, ``benc
 --json``) or folders holding one; A is the reference, B the one judged against it.
 Matching, directions and tolerances: :mod:`bench.report.compare` and ``docs/compare.md``.
 
-Exit codes: 0 no regression, 1 at least one regression (a criterion worse beyond its
-tolerance, a worse verdict, a criterion or case missing in B), 2 usage or an input that
-is not a results record (the file and field named), 3 bench error.
+Only like is compared with like: cases and variants on one side only are "not compared",
+criteria whose seed sets differ are compared on the common seeds, judged over runs or "not
+comparable" (never a regression).
+
+Exit codes: 0 no regression among the criteria compared like with like, 1 at least one
+like-with-like regression (a criterion worse beyond its tolerance or significantly worse
+over runs, a worse verdict on the same seeds, a criterion missing in B), 2 usage or an
+input that is not a results record (the file and field named), 3 nothing could be
+compared like with like (no case, variant and seeds in common), or a bench error.
 """
 
 from __future__ import annotations
@@ -16,7 +22,7 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from bench.cli.app import EXIT_FAIL, EXIT_OK
+from bench.cli.app import EXIT_ERROR, EXIT_FAIL, EXIT_OK
 from bench.errors import ConfigError
 
 if TYPE_CHECKING:
@@ -31,7 +37,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "compare",
         help="compare two results records (runs or suites): deltas, regressions, verdict changes",
         description="Compare results record B with reference A (results.json files or folders holding one): "
-        "every criterion's value, delta and verdict; exit 1 on a regression.",
+        "every criterion's value, delta and verdict, like with like only (the same case, variant and seeds; "
+        "other seeds are compared on their common seeds, judged over runs, or not comparable); exit 1 on a "
+        "regression, 3 when nothing could be compared.",
     )
     p.add_argument("a", help="reference results.json (or its folder)")
     p.add_argument("b", help="results.json to compare with the reference (or its folder)")
@@ -45,6 +53,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="default relative tolerance of the criteria without one (default 0.05)")
     p.add_argument("--floor", type=fraction, default=None, metavar="FRACTION",
                    help="the default tolerance is at least this fraction of the criterion's limit (default 0.01)")
+    p.add_argument("--alpha", type=fraction, default=None, metavar="FRACTION",
+                   help="significance of a criterion judged over runs when the seeds differ (default 0.05)")
     p.add_argument("--changes", action="store_true", help="print only the criteria that changed")
     p.set_defaults(handler=_run)
 
@@ -125,7 +135,7 @@ def parse_tolerances(tol: list[str], tol_rel: list[str], a: Record, b: Record) -
 
 
 def _run(args: argparse.Namespace) -> int:
-    from bench.report.compare import DEFAULT_FLOOR, DEFAULT_REL_TOL, compare, load_record
+    from bench.report.compare import DEFAULT_ALPHA, DEFAULT_FLOOR, DEFAULT_REL_TOL, compare, load_record
     from bench.report.compare_view import text_report, to_json, write_html
     from bench.report.results import write_json
 
@@ -133,10 +143,15 @@ def _run(args: argparse.Namespace) -> int:
     tolerances = parse_tolerances(args.tol, args.tol_rel, a, b)
     rel = DEFAULT_REL_TOL if args.rel_tol is None else args.rel_tol
     floor = DEFAULT_FLOOR if args.floor is None else args.floor
-    cmp = compare(a, b, tolerances, rel, floor)
+    alpha = DEFAULT_ALPHA if args.alpha is None else args.alpha
+    if not 0 < alpha < 1:
+        raise ConfigError(f"expected a significance between 0 and 1, found {alpha:g}", key="--alpha")
+    cmp = compare(a, b, tolerances, rel, floor, alpha)
     print(text_report(cmp, changes_only=args.changes))
     if args.out:
         out = Path(args.out)
         write_json(to_json(cmp), out / "compare.json")
         write_html(cmp, out / "compare.html")
-    return EXIT_FAIL if cmp.regressed else EXIT_OK
+    if cmp.regressed:
+        return EXIT_FAIL
+    return EXIT_OK if cmp.compared else EXIT_ERROR  # nothing compared like with like: not a pass

@@ -235,9 +235,14 @@ def test_cases_on_one_side_only(tmp_path, capsys):
     b["cases"].append({**b["cases"][0], "id": "NEW"})
     pa, pb = _write(tmp_path, "a.json", a), _write(tmp_path, "b.json", b)
     code, out, _ = _compare(capsys, pa, pb)
-    assert code == 0 and "case NEW: new in B" in out  # a new case is noted
+    assert code == 0 and "case NEW: not compared (in B only)" in out  # a new case is noted
+    # a case absent from B is not compared, not a regression (issue 34: like with like);
+    # the case both have is compared
     code, out, _ = _compare(capsys, pb, pa)
-    assert code == 1 and "case NEW: missing in B" in out
+    assert code == 0 and "case NEW: not compared (in A only)" in out and out.rstrip().endswith("no regression")
+    # and when no case is on both sides, nothing was compared: exit 3, never "no regression"
+    code, out, _ = _compare(capsys, pb, _write(tmp_path, "c.json", _record([_crit("x", 1.0)], case="OTHER")))
+    assert code == 3 and "no regression" not in out and "nothing compared like with like" in out
 
 
 def test_identification_is_shown(tmp_path, capsys):
