@@ -99,6 +99,16 @@ class DutSpec:
     #: estimators are the bench's own code: their version is the bench's when none is given
     version: str = ""
 
+    @property
+    def names(self) -> str | None:
+        """The estimator name(s) the case runs: its own, or its variants' in their order
+        where a variant names another (``"seed000, seed003"``); None without any."""
+        if not self.variants:
+            return self.name
+        seen = list(dict.fromkeys(str(v.get("name") or self.name or "") for v in self.variants.values()))
+        seen = [n for n in seen if n]
+        return ", ".join(seen) or None
+
 
 @dataclass(frozen=True)
 class ClockSpec:

@@ -172,7 +172,7 @@ def case_json(cr: CaseResult) -> dict[str, Any]:
             "integrity_waived": cr.waived,
             "requirements_waived": [] if cr.case is None else
             [{"requirement": k, "reason": v} for k, v in cr.case.waived.items()],
-            "dut": None if cr.case is None else {"kind": cr.case.dut.kind, "name": cr.case.dut.name},
+            "dut": None if cr.case is None else {"kind": cr.case.dut.kind, "name": cr.case.dut.names},
             "criteria": [criterion_json(c) for c in cr.criteria],
             "runs": [run_json(r) for r in cr.runs],
         }

@@ -117,7 +117,7 @@ def case_lines(cases: Sequence[CaseResult]) -> list[str]:
                 problems.append(f"seed {r.seed}{'/' + r.variant if r.variant else ''}: {issue}")
         dut = ""
         if cr.case is not None:
-            dut = f" [DUT: {cr.case.dut.kind}{' ' + cr.case.dut.name if cr.case.dut.name else ''}]"
+            dut = f" [DUT: {cr.case.dut.kind}{' ' + cr.case.dut.names if cr.case.dut.names else ''}]"
         line = f"{cr.verdict!s:<8} {cr.case_id}: {cr.title}{dut}"
         if problems:
             line += f" -- {problems[0]}" + (f" (+{len(problems) - 1} more)" if len(problems) > 1 else "")

@@ -81,3 +81,19 @@ def test_the_real_log_case_passes_at_its_native_rate_and_fails_against_a_wrong_t
     code, crit = _run(_case(tmp_path, wrong), tmp_path / "out_wrong")
     assert code == 1 and crit["HDG"]["verdict"] == "FAIL", crit["HDG"]
     assert crit["PITCH"]["verdict"] == "PASS"  # only what is wrong fails
+
+
+def test_the_case_names_every_estimator_its_variants_run():
+    # S004's variants run seed000 and seed003; the case's DUT label said "seed000" alone
+    from bench.acceptance.case import load_case
+    from bench.acceptance.judge import CaseResult
+    from bench.acceptance.verdict import Verdict
+    from bench.report.results import case_json
+    from bench.report.table import case_lines
+
+    case = load_case(ROOT / "test_cases" / "S004_real_lasergyro.toml")
+    assert case.dut.names == "seed000, seed003"
+    assert case.for_variant("seed003").dut.name == "seed003"
+    cr = CaseResult(case_id="S004", title="t", file="f", requirements=(), verdict=Verdict.PASS, case=case)
+    assert case_json(cr)["dut"] == {"kind": "in_process", "name": "seed000, seed003"}
+    assert "[DUT: in_process seed000, seed003]" in case_lines([cr])[0]
