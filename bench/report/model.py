@@ -11,7 +11,7 @@ nothing else. No third-party library here.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 from bench.acceptance.verdict import Verdict
@@ -81,6 +81,47 @@ def coverage(cases: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
     return [rows[k] for k in sorted(rows)]
 
 
+#: The verdict kinds a headline counts, in its order (a requirement may also be NOT JUDGED
+#: or WAIVED); a kind outside these is counted under its own name after them.
+COUNTED = ("PASS", "MARGINAL", "FAIL", "ERROR", "N/A", "NOT JUDGED", "WAIVED")
+
+
+def verdict_counts(verdicts: Iterable[str]) -> dict[str, int]:
+    """How many of each verdict kind (every kind of :data:`COUNTED` present, zeros
+    included for PASS to N/A, so a headline never leaves a kind out): ``{"PASS": 364,
+    "MARGINAL": 0, ..., "N/A": 5}``; ``total`` is not a key (sum the values)."""
+    out = {k: 0 for k in COUNTED[:5]}
+    for v in verdicts:
+        out[str(v)] = out.get(str(v), 0) + 1
+    return out
+
+
+def not_pass(cases: Sequence[Mapping[str, Any]], cover: Sequence[Mapping[str, Any]]) -> list[dict[str, str]]:
+    """Everything a reviewer must see first, worst first: cases that could not be
+    judged (their errors), criteria whose verdict is not PASS (N/A included: a criterion
+    that judged nothing), requirements named and never judged. Rows: ``what`` (case,
+    criterion, requirement), ``case``, ``id``, ``variant``, ``verdict``, ``detail``."""
+    rank = {"ERROR": 0, "FAIL": 1, "NOT JUDGED": 2, "MARGINAL": 3, "N/A": 4}
+    rows: list[dict[str, str]] = []
+    for c in cases:
+        for e in c.get("errors", []):
+            rows.append({"what": "case", "case": c["id"], "id": c["id"], "variant": "", "verdict": c["verdict"],
+                         "detail": str(e)})
+        for r in c.get("criteria", []):
+            if r["verdict"] != "PASS":
+                shown = f"{r['value']} {r['unit']}".strip() if r.get("value_raw") is not None else ""
+                limit = f"limit {r['limit']}" if r.get("limit") else ""
+                detail = "; ".join(x for x in (shown and f"value {shown}", limit, r.get("reason", "")) if x)
+                rows.append({"what": "criterion", "case": c["id"], "id": r["id"], "variant": r["variant"],
+                             "verdict": r["verdict"], "detail": detail})
+    for req in cover:
+        if req["verdict"] == "NOT JUDGED":
+            where = ", ".join(e["case"] for e in req["cases"] if e["verdict"] is None and not e["waived"])
+            rows.append({"what": "requirement", "case": where, "id": req["requirement"], "variant": "",
+                         "verdict": "NOT JUDGED", "detail": "named by the case, judged by none of its criteria"})
+    return sorted(rows, key=lambda r: rank.get(r["verdict"], 5))
+
+
 def _criterion_row(cr: Mapping[str, Any]) -> dict[str, Any]:
     seeds = cr.get("runs", [])
     return {
@@ -146,16 +187,21 @@ def report_model(results: Mapping[str, Any], *, title: str = "Acceptance report"
             "figures": [],
         })
     seeds = sorted({r["seed"] for c in model_cases for r in c["runs"] if isinstance(r["seed"], int)})
+    cover = coverage(cases)
     return {
         "title": title,
         "schema": results.get("schema", ""),
         "verdict": results.get("verdict", "ERROR"),
         "counts": dict(results.get("counts", {})),
         "n_criteria": sum(len(c["criteria"]) for c in model_cases),
+        "case_counts": verdict_counts(c["verdict"] for c in model_cases),
+        "criterion_counts": verdict_counts(r["verdict"] for c in model_cases for r in c["criteria"]),
+        "requirement_counts": verdict_counts(r["verdict"] for r in cover),
+        "not_pass": not_pass(model_cases, cover),
         "identification": ident,
         "run_info": run_info,
         "seeds": seeds,
-        "coverage": coverage(cases),
+        "coverage": cover,
         "cases": model_cases,
         "interrupted": _interrupted(results.get("interrupted")),
     }
