@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.acceptance.criteria import Criterion
+from bench.acceptance.requirements import Requirement, requirements_beside, resolve_limit_sources, stated
 from bench.config import files
 from bench.errors import ConfigError
 from bench.faults.schedule import FaultSchedule
@@ -37,6 +38,7 @@ __all__ = [
     "CLOCK_MODES",
     "DUT_KINDS",
     "merge_tables",
+    "with_requirements",
 ]
 
 CLOCK_MODES = ("lockstep", "realtime")
@@ -172,6 +174,10 @@ class TestCase:
     #: ``[case] waived``: requirement id -> why the case names it but judges it nowhere
     waived: Mapping[str, str] = field(default_factory=dict)
     variant: str | None = None
+    #: the statements of the named requirements (bench.acceptance.requirements), and the
+    #: suite's requirements file as read (attached to the recordings), "" without one
+    requirement_texts: Mapping[str, Requirement] = field(default_factory=dict)
+    requirements_file_text: str = ""
 
     def variants(self) -> list[str | None]:
         """The variants to run: the DUT's named variants, or [None]."""
@@ -242,7 +248,19 @@ def load_case(path: str | Path, *, check_files: bool = True) -> TestCase:
     """Read and check a test case file (a regular UTF-8 file of at most 64 MiB)."""
     p = Path(path)
     text = files.read_text(p, what="test case file")
-    return parse_case(text, file=str(p), base=p.resolve().parent, check_files=check_files, path=p)
+    case = parse_case(text, file=str(p), base=p.resolve().parent, check_files=check_files, path=p)
+    beside = requirements_beside(p)
+    if beside is None:
+        return with_requirements(case, stated(case.requirements, None, file="", case_file=str(p)))
+    given, req_text, req_file = beside
+    return with_requirements(case, stated(case.requirements, given, file=req_file, case_file=str(p)), req_text)
+
+
+def with_requirements(case: TestCase, texts: Mapping[str, Requirement], file_text: str = "") -> TestCase:
+    """``case`` with the statements of its requirements, the suite's file as read, and
+    every criterion's limit source resolved."""
+    return replace(case, requirement_texts=dict(texts), requirements_file_text=file_text,
+                   criteria=resolve_limit_sources(case.criteria, texts))
 
 
 def parse_case(

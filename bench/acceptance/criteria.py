@@ -195,6 +195,9 @@ class Criterion:
     paper: str = ""
     description: str = ""
     variant: str | None = None
+    #: where the limit comes from: "paper", "standard" or "bench" ("" until the case's
+    #: requirements are read: bench.acceptance.requirements.resolve_limit_sources)
+    limit_source: str = ""
     relative_to: str | None = None
     must_fail_on: tuple[str, ...] = ()
     options: dict[str, Any] = field(default_factory=dict, hash=False, compare=False)

@@ -15,6 +15,7 @@ from typing import Any, TypeVar
 from bench.acceptance.case import ClockSpec, DutSpec, RunSpec
 from bench.acceptance.criteria import AGGREGATES, COMPARATORS, Criterion, Limit, MonteCarlo
 from bench.acceptance.integrity_criteria import parse_integrity
+from bench.acceptance.requirements import SOURCES
 from bench.config.table import Table, type_name
 from bench.errors import ConfigError
 from bench.scenario.motion import GNSS_FLAGS, SEGMENT_KINDS
@@ -285,6 +286,7 @@ def _criterion(
             raise t.error("compare_tolerance", "expected a non-negative tolerance")
     tol_rel = t.quantity("compare_tolerance_relative", "dimensionless", "1", nonnegative=True)
     paper = t.str("paper", "")
+    limit_source = t.str("limit_source", None, choices=SOURCES) or ""
     description = t.str("description", "")
     t.finish()
     return _built(
@@ -300,6 +302,7 @@ def _criterion(
         marginal=marginal,
         marginal_relative=marginal_rel,
         paper=str(paper),
+        limit_source=limit_source,
         description=str(description),
         variant=variant,
         relative_to=relative_to,

@@ -30,9 +30,10 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from bench.acceptance.case import TestCase, parse_case
+from bench.acceptance.case import TestCase, parse_case, with_requirements
 from bench.acceptance.criteria import Aggregate, Criterion, RunValue, aggregate_runs, judge_value
 from bench.acceptance.integrity_criteria import PREFIX, waivers
+from bench.acceptance.requirements import ATTACHMENT, parse_requirements, stated
 from bench.acceptance.verdict import Verdict, worst
 from bench.errors import ConfigError, RecordingError
 from bench.scoring.consistency import GRID_NS
@@ -120,7 +121,13 @@ def case_of(run: RunData) -> TestCase:
     if att is None:
         raise RecordingError(f"{run.path}: no test case attached (case/<file>); give one with --case")
     name, data = att
-    return parse_case(data.decode("utf-8"), file=f"{run.path}:case/{name}", check_files=False)
+    case = parse_case(data.decode("utf-8"), file=f"{run.path}:case/{name}", check_files=False)
+    req = run.attachments.get(ATTACHMENT)
+    given = None
+    if req is not None:
+        given = parse_requirements(req.decode("utf-8", "replace"), file=f"{run.path}:{ATTACHMENT}")
+    texts = stated(case.requirements, given, file=f"{run.path}:{ATTACHMENT}", case_file=f"{run.path}:case/{name}")
+    return with_requirements(case, texts, req.decode("utf-8", "replace") if req is not None else "")
 
 
 def _applies(c: Criterion, variant: str | None) -> bool:

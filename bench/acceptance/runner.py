@@ -38,6 +38,7 @@ from importlib.metadata import entry_points
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
+from bench.acceptance.requirements import ATTACHMENT as REQUIREMENTS_ATTACHMENT
 from bench.errors import BenchError
 from bench.runinfo import git_commit, host_metadata
 
@@ -158,6 +159,8 @@ def case_attachments(case: TestCase) -> list[tuple[str, bytes, str]]:
     ``case/<file>`` (so ``bench score`` can re-judge without it), its scenario and fault
     files, and the road network of its map metrics as ``map/<file>``."""
     out = [(f"case/{case.file_name}", case.text.encode(), "application/toml")]
+    if case.requirements_file_text:
+        out.append((REQUIREMENTS_ATTACHMENT, case.requirements_file_text.encode(), "application/toml"))
     ref = case.scenario
     paths = [scenario_file(case), ref.resolve(ref.driver), ref.resolve(ref.vehicle)]
     for p in paths:

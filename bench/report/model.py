@@ -72,7 +72,15 @@ def coverage(cases: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
             row["cases"].append(entry)
             if not verdicts and req not in waived:
                 row["judged"] = False
+    for case in cases:
+        for r in case.get("requirements_text", []):
+            row = rows.get(r.get("id")) if isinstance(r, Mapping) else None
+            if row is not None and r.get("statement") and not row.get("statement"):
+                row.update(statement=r["statement"], source=r.get("source") or "", citation=r.get("citation") or "")
     for row in rows.values():
+        row.setdefault("statement", "")
+        row.setdefault("source", "")
+        row.setdefault("citation", "")
         verdicts = [c["verdict"] for c in row["cases"] if c["verdict"] is not None]
         if verdicts and row["judged"]:
             row["verdict"] = _worst(verdicts)
@@ -140,6 +148,7 @@ def _criterion_row(cr: Mapping[str, Any]) -> dict[str, Any]:
         "verdict": cr.get("verdict", "ERROR"),
         "reason": cr.get("reason", ""),
         "paper": cr.get("paper") or "",
+        "limit_source": cr.get("limit_source") or "",
         "relative_to": cr.get("relative_to") or "",
         "must_fail_on": ", ".join(cr.get("must_fail_on", [])),
         "monte_carlo": cr.get("monte_carlo", ""),
@@ -182,6 +191,9 @@ def report_model(results: Mapping[str, Any], *, title: str = "Acceptance report"
             "errors": list(case.get("errors", [])),
             "waived": list(case.get("integrity_waived", [])),
             "requirements_waived": list(case.get("requirements_waived", [])),
+            "requirements_text": [dict(r) for r in case.get("requirements_text", []) if isinstance(r, Mapping)],
+            "reference": str(case.get("reference") or ""),
+            "assumed": [str(a) for a in case.get("assumed", [])],
             "criteria": [_criterion_row(c) for c in case.get("criteria", [])],
             "runs": [_run_row(r) for r in case.get("runs", [])],
             "figures": [],

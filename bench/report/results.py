@@ -125,6 +125,7 @@ def criterion_json(cr: CriterionResult) -> dict[str, Any]:
         "verdict": str(a.verdict),
         "reason": a.reason,
         "paper": c.paper,
+        "limit_source": c.limit_source,
         "variant": cr.variant,
         "relative_to": c.relative_to,
         "control": cr.control,
@@ -173,6 +174,11 @@ def case_json(cr: CaseResult) -> dict[str, Any]:
             "requirements_waived": [] if cr.case is None else
             [{"requirement": k, "reason": v} for k, v in cr.case.waived.items()],
             "dut": None if cr.case is None else {"kind": cr.case.dut.kind, "name": cr.case.dut.names},
+            "requirements_text": [] if cr.case is None else [
+                cr.case.requirement_texts[r].to_json() if r in cr.case.requirement_texts
+                else {"id": r, "statement": None, "source": None, "citation": ""} for r in cr.requirements],
+            "reference": "" if cr.case is None else cr.case.reference,
+            "assumed": [] if cr.case is None else list(cr.case.assumed),
             "criteria": [criterion_json(c) for c in cr.criteria],
             "runs": [run_json(r) for r in cr.runs],
         }

@@ -24,6 +24,8 @@ CASE_A = """
 id = "RPT-A"
 title = "report test: faults, frame switch, covariance"
 requirements = ["R-ACC", "R-FDI", "R-NEES", "R-LATENCY"]
+reference = "the report tests' own drive (tests/report/suite.py)"
+assumed = ["the synthetic DUT stands in for an estimator: its errors are drawn, not estimated"]
 waived = { R-LATENCY = "judged in the real-time case RPT-RT, not in lockstep" }
 
 [scenario]
@@ -135,10 +137,42 @@ at_most = "4 m"
 """
 
 
+REQUIREMENTS = """
+[[requirement]]
+id = "R-ACC"
+statement = "The estimator shall keep its horizontal position error within 5 m RMS over the drive."
+source = "paper"
+citation = "report-test paper, table 1"
+
+[[requirement]]
+id = "R-FDI"
+statement = "The estimator shall detect each odometer fault within 1 s of its start."
+source = "bench"
+
+[[requirement]]
+id = "R-NEES"
+statement = "The estimator's reported covariance shall cover its position error (NEES)."
+source = "bench"
+
+[[requirement]]
+id = "R-LATENCY"
+statement = "The estimator shall answer each step within 10 ms in real time."
+source = "standard"
+citation = "ICD.md, timing"
+
+[[requirement]]
+id = "R-NEVER"
+statement = "A requirement named and never judged."
+source = "bench"
+"""
+
+
 def write_suite(folder: Path) -> Path:
-    """The two case files and their drive in ``folder/cases``; returns that folder."""
+    """The two case files, their drive and the suite's requirements.toml in
+    ``folder/cases``; returns that folder."""
     cases = folder / "cases"
     cases.mkdir(parents=True, exist_ok=True)
+    (cases / "requirements.toml").write_text(REQUIREMENTS)
     (cases / "drive.toml").write_text(DRIVE)
     (cases / "rpt_a.toml").write_text(CASE_A.replace("NAME", HOSTILE_NAME).replace("VERSION", HOSTILE_VERSION))
     (cases / "rpt_b.toml").write_text(CASE_B)

@@ -102,15 +102,26 @@ def test_the_report_names_the_verdicts_the_gaps_and_the_dut_text_escaped(suite_o
                                                         "names it") for e in b["errors"]), b["errors"]
     assert any(c["verdict"] == "FAIL" for c in b["criteria"])
     assert "requirement R-NEVER not judged" in html
-    row = re.search(r'<tr class="gap"><td>R-NEVER</td>.*?</tr>', html, re.S)
+    row = re.search(r'<tr class="gap"><td class="req-id">R-NEVER</td>.*?</tr>', html, re.S)
     assert row is not None and "never judged" in row.group(0) and 'data-verdict="NOT JUDGED"' in row.group(0)
     # R-LATENCY is waived by RPT-A, with its reason: shown, not a gap, and RPT-A PASSes
     a = next(c for c in record["cases"] if c["id"] == "RPT-A")
     assert a["verdict"] == "PASS" and a["requirements_waived"] == [
         {"requirement": "R-LATENCY", "reason": "judged in the real-time case RPT-RT, not in lockstep"}]
-    row = re.search(r'<tr><td>R-LATENCY</td>.*?</tr>', html, re.S)
+    row = re.search(r'<tr><td class="req-id">R-LATENCY</td>.*?</tr>', html, re.S)
     assert row is not None and "waived: judged in the real-time case RPT-RT" in row.group(0)
     assert 'data-verdict="WAIVED"' in row.group(0)
+    # requirements in words, with their source, in the record and the report; the case's
+    # reference and assumptions too (57b1bce: ids only)
+    assert a["requirements_text"][0] == {
+        "id": "R-ACC", "statement": "The estimator shall keep its horizontal position error within 5 m RMS over the "
+        "drive.", "source": "paper", "citation": "report-test paper, table 1"}
+    assert a["reference"].startswith("the report tests' own drive") and a["assumed"][0].startswith("the synthetic DUT")
+    row = re.search(r'<tr><td class="req-id">R-FDI</td>.*?</tr>', html, re.S)
+    assert row is not None and "shall detect each odometer fault within 1 s" in row.group(0)
+    assert "(bench" in row.group(0)
+    assert "Assumed by the bench" in html and "its errors are drawn, not estimated" in html
+    assert all(c.get("limit_source") in ("paper", "standard", "bench") for c in a["criteria"])
     assert html.count('<section class="case"') == 2
     for title in SECTIONS:
         assert f">{title}<" in html
