@@ -60,7 +60,8 @@ def test_the_estimator_example_of_the_docs_runs_as_written(tmp_path, case):
 def _external_case(folder: Path, command: str, links: str) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     doc = (ROOT / "docs" / "estimators.md").read_text()  # its example estimator, saved beside the case
-    (folder / "gyro_doppler.py").write_text(re.search(r"```python\n(import numpy.*?class GyroDoppler.*?)```", doc, re.S)[1])
+    code = re.search(r"```python\n(import numpy.*?class GyroDoppler.*?)```", doc, re.S)
+    (folder / "gyro_doppler.py").write_text(code[1])
     path = folder / "mine.toml"
     path.write_text(f"""
 [case]
