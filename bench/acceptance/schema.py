@@ -373,6 +373,23 @@ def _hardware_links(t: Table, links: Mapping[str, Mapping[str, Any]], config: An
                       "udp_multicast, pcan ...)")
 
 
+def _external_links(t: Table, links: Mapping[str, Mapping[str, Any]]) -> None:
+    """An external DUT is another process: python-can's ``virtual`` bus (the default when
+    ``[dut.links] can`` names no interface) lives in the bench's process and reaches no other,
+    so such a DUT never hears BENCH_TIME and the bench never hears it."""
+    can = links.get("can", {})
+    if can.get("interface", "virtual") != "virtual":
+        return
+    said = "is python-can's 'virtual' bus" if "interface" in can else \
+        "names no interface, so it is python-can's 'virtual' bus"
+    raise t.error("links.can.interface" if "interface" in can else "links.can",
+                  f"the CAN link {said}, which lives in the bench's process and cannot reach another process: "
+                  "an external DUT never hears it. Name the bus the DUT is on, e.g. "
+                  "can = { interface = \"udp_multicast\", channel = \"239.74.163.2\" } (this machine's loopback, "
+                  "no root) or can = { interface = \"socketcan\", "
+                  "channel = \"vcan0\" } (docs/run_engine.md, \"Cross-process CAN\")")
+
+
 def _udp_keys(t: Table, vals: Mapping[str, Any]) -> None:
     """``port`` and ``interface_address`` are udp_multicast's; its channel is an IPv4
     multicast group and its interface address an IPv4 address."""
@@ -437,6 +454,7 @@ def _dut(t: Table, base: Path | None, check_files: bool) -> DutSpec:
                     f"unknown placeholder {{{field_name}}}; expected: "
                     + ", ".join("{" + p + "}" for p in COMMAND_PLACEHOLDERS),
                 )
+        _external_links(t, links)
     if kind != "external" and command:
         raise t.error("command", f"a command line is for an external DUT, not {kind!r}")
     if kind == "hardware":

@@ -34,7 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "the replay's metadata and its results); without it such a replay is ERROR")
     p.add_argument("--case", help="test case whose DUT, links and clock to use")
     p.add_argument("--estimator", help="in-process estimator name (instead of --case)")
-    p.add_argument("--dut-command", help="external DUT command line with ICD placeholders (instead of --case)")
+    p.add_argument("--dut-command", help="external DUT command line with ICD placeholders (instead of --case); its "
+                   "CAN is udp_multicast on the loopback ({can_interface}, {can_channel}, {can_port})")
     p.add_argument("--dut-config", help="JSON or TOML file of the DUT configuration")
     p.add_argument("--faults", help="fault file ([[fault]] tables, wire layer): re-encode with these faults")
     p.add_argument("--clock", choices=("lockstep", "realtime"), default=None, help="clock mode (default lockstep)")
@@ -136,6 +137,9 @@ def _run(args: argparse.Namespace) -> int:
         dut = DutSpec(kind="in_process", name=args.estimator, config=_dut_config(args.dut_config))
     elif args.dut_command:
         dut = DutSpec(kind="external", command=args.dut_command, config=_dut_config(args.dut_config))
+        # another process: not python-can's virtual bus (the bench's process only) but
+        # udp_multicast on this machine's loopback, a free port per run ({can_port})
+        links = LinkSpec(can={"interface": "udp_multicast"})
     else:
         raise ConfigError("give the DUT: --case, --estimator or --dut-command", key="--case")
     faults: FaultSchedule | None = None

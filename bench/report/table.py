@@ -94,11 +94,29 @@ def reason_lines(cases: Sequence[CaseResult]) -> list[str]:
     text: escape it for where it is shown)."""
     out = []
     for cr in cases:
+        # criteria with the same verdict and reason share a line, and the run's problem that
+        # the case's line shows (a DUT that never started: its last output) is not repeated
+        shown = [*cr.errors, *(i for r in cr.runs for i in r.bench_issues + r.dut_issues)][:1]
+        groups: dict[tuple[str, str], list[str]] = {}
         for res in cr.criteria:
             if res.aggregate.reason and res.verdict.value in ("FAIL", "ERROR", "N/A"):
-                label = res.label
-                out.append(f"  {cr.case_id} {label}: {res.verdict}: {res.aggregate.reason}")
+                reason = res.aggregate.reason
+                for problem in shown:
+                    reason = reason.replace(problem, "the run's problem above") if problem else reason
+                groups.setdefault((str(res.verdict), reason), []).append(res.label)
+        for (verdict, reason), labels in groups.items():
+            many = f" ({len(labels)} criteria)" if len(labels) > 1 else ""
+            out.append(f"  {cr.case_id} {', '.join(labels)}{many}: {verdict}: {reason}")
     return out
+
+
+def _problems(cr: CaseResult) -> list[str]:
+    """The case's errors and its runs' issues (``seed N: issue``), as its line counts them."""
+    problems = list(cr.errors)
+    for r in cr.runs:
+        for issue in r.bench_issues + r.dut_issues:
+            problems.append(f"seed {r.seed}{'/' + r.variant if r.variant else ''}: {issue}")
+    return problems
 
 
 def note_lines(cases: Sequence[CaseResult]) -> list[str]:
@@ -111,10 +129,7 @@ def case_lines(cases: Sequence[CaseResult]) -> list[str]:
     """One line per case: verdict, title, and the first problem if any (raw text)."""
     out = []
     for cr in cases:
-        problems = list(cr.errors)
-        for r in cr.runs:
-            for issue in r.bench_issues + r.dut_issues:
-                problems.append(f"seed {r.seed}{'/' + r.variant if r.variant else ''}: {issue}")
+        problems = _problems(cr)
         dut = ""
         if cr.case is not None:
             dut = f" [DUT: {cr.case.dut.kind}{' ' + cr.case.dut.names if cr.case.dut.names else ''}]"

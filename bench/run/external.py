@@ -181,7 +181,8 @@ class ExternalDut(RealtimeExchange):
         self.process.wait_output(1.0)  # the lines it wrote before it died
         self._flush_lines()
         when = when or f"at bench time {self.now_ns / 1e9:.3f} s"
-        raise exit_error(code, f"the DUT process exited {describe_exit(code)} {when}" + self._tail())
+        raise exit_error(code, f"the DUT process exited {describe_exit(code)} {when}" + self._tail()
+                         + self._interpreter_hint())
 
     def _tail(self, n: int = 5) -> str:
         """`` (last output: ...)`` with the DUT's last ``n`` non-empty lines, or nothing; their
@@ -281,7 +282,24 @@ class ExternalDut(RealtimeExchange):
                 raise DutError(
                     f"the DUT did not answer BENCH_TIME({t_first / 1e9:g} s) with DUT_READY within "
                     f"{self.spec.startup_timeout_s:g} s of its start (ICD 5: listening within 5 s)" + self._tail()
+                    + self._virtual_hint()
                 )
+
+    def _interpreter_hint(self) -> str:
+        """Why a ``python -m bench...`` DUT could not start: its interpreter is not the bench's."""
+        if any("No module named 'bench'" in ln.text for ln in self._recent):
+            return ("; its interpreter has no bench: '{python}' in the command is the bench's own "
+                    "(docs/estimators.md, \"Naming it in a test case\")")
+        return ""
+
+    def _virtual_hint(self) -> str:
+        """Why a DUT process cannot have answered: the bus is python-can's ``virtual`` one,
+        which lives in the bench's process (a test case is refused at load for it; a DUT
+        given otherwise, such as ``bench replay --dut-command``, is told here)."""
+        if self.spec.kind != "external" or self.can is None or self.can.config.interface != "virtual":
+            return ""
+        return ("; the CAN bus is python-can's 'virtual' one, which cannot reach another process: "
+                "give the DUT's bus in [dut.links] can (docs/run_engine.md, \"Cross-process CAN\")")
 
     def _ready_at_least(self, frames: CanBatch, t_ns: int) -> bool:
         """Note the DUT_READY times in ``frames``; whether the DUT has reached ``t_ns``."""

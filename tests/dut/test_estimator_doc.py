@@ -5,7 +5,6 @@ drive in lockstep, in process and through the harness."""
 from __future__ import annotations
 
 import re
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +15,6 @@ from bench.acceptance.suite import SuiteOptions, run_case
 from bench.acceptance.verdict import Verdict
 from bench.dut import MODE_DOPPLER, SOLUTION_VALID
 from bench.record.mcap_io import RecordingReader
-from tests.transport import netns
 
 ROOT = Path(__file__).parent.parent.parent
 SHORT = ROOT / "tests" / "data" / "short_drive.toml"
@@ -93,14 +91,12 @@ def test_the_documented_example_runs_in_process_from_beside_its_case(tmp_path):
 
 
 @pytest.mark.slow
-def test_the_documented_example_runs_through_the_harness(ns, tmp_path):
+def test_the_documented_example_runs_through_the_harness(tmp_path):
+    # the document's [dut] and [dut.links] as written ({python}, udp_multicast on the loopback:
+    # no network namespace), with generous hang guards for a loaded machine
     dut = next(b for b in _blocks("toml") if 'kind = "external"' in b)
-    dut = dut.replace('"python -m', f'"ip netns exec {ns} {sys.executable} -m')
-    dut += '\nstartup_timeout = "60 s"\nshutdown_timeout = "60 s"\n\n[dut.links]\n' \
-           'can = { interface = "udp_multicast", channel = "239.74.164.72", port = 43472 }\n\n' \
-           '[clock]\nmode = "lockstep"\ntimeout = "60 s"\n'
-    dut = dut.replace("[dut]\n", '[dut]\nconfig = { initial_position = [34.246, 108.909, 380.0], '
-                      'initial_heading = 45.0 }\n', 1)
+    dut = dut.replace("[dut]\n", '[dut]\nstartup_timeout = "60 s"\nshutdown_timeout = "60 s"\n', 1)
+    dut += '\n[clock]\nmode = "lockstep"\ntimeout = "60 s"\n'
     case = load_case(_case(tmp_path, dut, duration="20 s"))
-    result = netns.call_in(ns, lambda: run_case(case, SuiteOptions(tmp_path / "out")))
+    result = run_case(case, SuiteOptions(tmp_path / "out"))
     _check(result, 20.0)

@@ -1,0 +1,1 @@
+"""The documents' examples, run as written (tests/docs/test_examples.py)."""
