@@ -12,12 +12,14 @@ from __future__ import annotations
 
 import base64
 import json
+import re
 from collections.abc import Mapping, Sequence
 from functools import cache
 from importlib.resources import files
 from typing import Any
 
 import jinja2
+from markupsafe import Markup, escape
 
 from bench.report.model import fmt_num
 from bench.textsafe import xml_safe
@@ -106,6 +108,13 @@ def _shown(v: Any) -> Any:
     return v
 
 
+def breakable(v: Any) -> Markup:
+    """An identifier that a narrow column may break only after its separators (``-``,
+    ``_``, ``.``, ``/``, ``,``), never inside a word: ``with_<wbr>detection``."""
+    text = escape(xml_safe(str(v)))
+    return Markup(re.sub(r"([-_./,])", r"\1<wbr>", str(text)))
+
+
 @cache
 def _env() -> jinja2.Environment:
     env = jinja2.Environment(
@@ -117,6 +126,7 @@ def _env() -> jinja2.Environment:
         finalize=_shown,
     )
     env.filters["num"] = fmt_num
+    env.filters["breakable"] = breakable
     return env
 
 

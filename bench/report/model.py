@@ -130,6 +130,46 @@ def not_pass(cases: Sequence[Mapping[str, Any]], cover: Sequence[Mapping[str, An
     return sorted(rows, key=lambda r: rank.get(r["verdict"], 5))
 
 
+#: The id prefix of the default output-integrity criteria (bench.acceptance.integrity_criteria).
+INTEGRITY_PREFIX = "INTEGRITY-"
+
+#: Units shown in words where the catalogue's unit is a bare number.
+UNIT_WORDS = {"1": "count", "": ""}
+
+
+def integrity_summary(criteria: Sequence[Mapping[str, Any]]) -> dict[str, Any] | None:
+    """The default integrity criteria of a case in one line when every one PASSes: per
+    check (in order) its worst value over the variants and seeds with its unit; None when
+    the case has none. A check that is not PASS stays in the criteria table (``shown``)."""
+    rows = [c for c in criteria if str(c.get("id", "")).startswith(INTEGRITY_PREFIX)]
+    if not rows:
+        return None
+    checks: dict[str, dict[str, Any]] = {}
+    for c in rows:
+        name = str(c["id"])[len(INTEGRITY_PREFIX):]
+        entry = checks.setdefault(name, {"check": name, "values": [], "unit": _unit_word(c.get("unit", "")),
+                                         "limit": c.get("limit", "")})
+        for v in [c.get("value"), *[r.get("value") for r in c.get("runs", [])]]:
+            if isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v):
+                entry["values"].append(float(v))
+    passed = all(c.get("verdict") == "PASS" for c in rows)
+    return {"n": len(rows), "checks": len(checks), "all_pass": passed,
+            "line": ", ".join(f"{e['check']} {fmt_num(max(e['values'])) if e['values'] else '—'}"
+                              f"{' ' + e['unit'] if e['unit'] and e['unit'] != 'count' else ''}"
+                              for e in checks.values())}
+
+
+def _unit_word(unit: Any) -> str:
+    u = str(unit or "")
+    return UNIT_WORDS.get(u, u)
+
+
+def _shown(cr: Mapping[str, Any], runs: Sequence[Mapping[str, Any]], integrity_pass: bool) -> bool:
+    """Whether a criterion has its own row: every criterion but the integrity checks of
+    a case whose integrity checks all PASS (summarised in one line)."""
+    return not (integrity_pass and str(cr.get("id", "")).startswith(INTEGRITY_PREFIX))
+
+
 def _criterion_row(cr: Mapping[str, Any]) -> dict[str, Any]:
     seeds = cr.get("runs", [])
     return {
@@ -141,7 +181,7 @@ def _criterion_row(cr: Mapping[str, Any]) -> dict[str, Any]:
         "window": cr.get("window_text") or cr.get("window") or "",
         "value": fmt_num(cr.get("value")),
         "value_raw": cr.get("value"),
-        "unit": cr.get("unit", ""),
+        "unit": _unit_word(cr.get("unit", "")),
         "limit": cr.get("limit", ""),
         "margin": fmt_num(cr.get("margin")),
         "margin_raw": cr.get("margin"),
@@ -152,8 +192,12 @@ def _criterion_row(cr: Mapping[str, Any]) -> dict[str, Any]:
         "relative_to": cr.get("relative_to") or "",
         "must_fail_on": ", ".join(cr.get("must_fail_on", [])),
         "monte_carlo": cr.get("monte_carlo", ""),
+        # per-seed values only where they tell something: a criterion judged over the runs
+        # (a Monte Carlo statistic) or one whose runs are not all PASS
         "seeds": [{"seed": r.get("seed"), "value": fmt_num(r.get("value")), "value_raw": r.get("value"),
-                   "verdict": r.get("verdict", "")} for r in seeds] if len(seeds) > 1 else [],
+                   "verdict": r.get("verdict", "")} for r in seeds]
+        if len(seeds) > 1 and ((cr.get("monte_carlo") or "every run") != "every run"
+                               or any(r.get("verdict") != "PASS" for r in seeds)) else [],
     }
 
 
@@ -195,6 +239,7 @@ def report_model(results: Mapping[str, Any], *, title: str = "Acceptance report"
             "reference": str(case.get("reference") or ""),
             "assumed": [str(a) for a in case.get("assumed", [])],
             "criteria": [_criterion_row(c) for c in case.get("criteria", [])],
+            "integrity": integrity_summary(case.get("criteria", [])),
             "runs": [_run_row(r) for r in case.get("runs", [])],
             "figures": [],
         })
