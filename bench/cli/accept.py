@@ -208,7 +208,7 @@ def _report(record: Path, out: Path, ledger: Ledger, *, figures: bool, quiet: bo
     done: list[Path] = []
     try:
         results = json.loads(record.read_text(encoding="utf-8"))
-        command, rescore = commands_for(results)
+        command, rescore = commands_for(results, out=out)
         with progress_bar("report: figures", 1, unit="recordings", enabled=figures and not quiet) as bar:
             files = build_report(results, out, locate=folder_locator(out), figures=figures, command=command,
                                  rescore_command=rescore, progress=bar, written=done.append)

@@ -16,7 +16,8 @@ traceback, nothing left running) on the 10 s synthetic case, a few seconds each:
 * the reproduction command of a report (``results.json`` and the HTML report), run as
   printed from where the suite ran, exits as the original did and writes into a fresh
   output folder (on 57b1bce it exited 2: the recordings are not overwritten without
-  ``--force``), and the report names the bench version.
+  ``--force``), and the report names the bench version; its re-judging command runs as
+  printed too (on 57b1bce ``bench report results.json --rescore`` lacked ``-o``: exit 2).
 """
 
 from __future__ import annotations
@@ -27,7 +28,6 @@ import os
 import pty
 import re
 import select
-import signal
 import subprocess
 import sys
 import uuid
@@ -247,6 +247,9 @@ def test_the_reproduction_command_runs_as_printed_and_exits_as_the_original(tmp_
         assert shown[0] == printed, (shown, printed)  # the report's text is the record's command
         assert f"bench {__version__}" in html.unescape(re.sub(r"<[^>]+>", "", section)), section
         printed = shown[0]
+        rescore = _rerun(shown[1], tmp_path)  # the re-judging command runs as printed too
+        assert rescore.returncode == first.code, (shown[1], rescore.stdout, rescore.stderr)
+        assert (work / "reports" / "rescored" / "report.html").is_file(), shown[1]
     before = sorted(p.name for p in (work / "reports" / "recordings").rglob("*.mcap"))
     stamps = {p: p.stat().st_mtime_ns for p in (work / "reports" / "recordings").rglob("*.mcap")}
     again = _rerun(printed, work)  # where the suite ran
