@@ -66,6 +66,7 @@ def _run(args: argparse.Namespace) -> int:
     from bench.acceptance.suite import CaseInterrupted, SuiteOptions, refuse_impossible_faults, run_case
     from bench.cli.accept import _Reporter, clear_recordings, exit_code, write_suite_reports
     from bench.cli.app import EXIT_ERROR, EXIT_FAIL, EXIT_OK
+    from bench.cli.progress import end_line
     from bench.errors import ConfigError
     from bench.paths import reports_dir
     from bench.record.lock import preflight_folder
@@ -92,6 +93,7 @@ def _run(args: argparse.Namespace) -> int:
     try:
         result = run_case(case, options, _Reporter(1, args.quiet))
     except CaseInterrupted as exc:  # the reports of the runs that finished are still written
+        end_line()  # a bar the interrupt cut ends where it stood: what follows starts on its own line
         result = exc.result
         interruption = Interruption(exc.by, (result.case_id,) if exc.finished else (),
                                     () if exc.finished else (result.case_id,))

@@ -173,11 +173,13 @@ sys.exit(main(sys.argv[1:]))
 
 
 @pytest.mark.parametrize("where", ["log", "terminal"])
-def test_ctrl_c_prints_interrupted_on_a_line_of_its_own(tmp_path, where):
+@pytest.mark.parametrize("command", ["accept", "run"])
+def test_ctrl_c_prints_interrupted_on_a_line_of_its_own(tmp_path, command, where):
     cases = _suite(tmp_path / "cases")
     script = tmp_path / "interrupting_bench.py"
     script.write_text(INTERRUPTING)
-    cmd = [sys.executable, str(script), "accept", str(cases), "-o", str(tmp_path / "out"), "--no-report"]
+    cmd = [sys.executable, str(script), command, str(cases if command == "accept" else cases / "c0.toml"),
+           "-o", str(tmp_path / "out"), *(["--no-report"] if command == "accept" else [])]
     if where == "log":
         p = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=240)
         r = Outcome(p.returncode, p.stdout, p.stderr)
