@@ -106,8 +106,8 @@ def _run(args: argparse.Namespace) -> int:
         if Path(run.recording).is_file():
             print(for_terminal(f"  recording: {run.recording}"), file=sys.stderr)
         else:
-            print(for_terminal(f"  seed {run.seed}{'/' + run.variant if run.variant else ''}: no recording "
-                               "(the run did not start)"), file=sys.stderr)
+            which = f"seed {run.seed}" + (f" of variant {run.variant}" if run.variant else "")
+            print(for_terminal(f"  {which}: no recording was written (the summary says why)"), file=sys.stderr)
     print(f"\n{case.id} in {elapsed:.1f} s; results: {written.get('json') or 'none written'}")
     if interruption is not None or cut:
         return EXIT_ERROR
