@@ -84,14 +84,18 @@ def _on_terminal(cmd: list[str], cwd: Path, *, columns: int = 120) -> Outcome:
     os.close(slave)
     chunks: list[bytes] = []
     out = b""
+    watched = [master, p.stdout]
     try:
         while True:
-            ready, _, _ = select.select([master, p.stdout], [], [], 240)  # a hang guard
+            ready, _, _ = select.select(watched, [], [], 240)  # a hang guard
             if not ready:
                 p.kill()
                 pytest.fail("bench did not finish within 240 s")
             if p.stdout in ready:
-                out += p.stdout.read1(65536)  # type: ignore[union-attr]
+                data = p.stdout.read1(65536)  # type: ignore[union-attr]
+                out += data
+                if not data:  # stdout closed: only the terminal is left to read
+                    watched.remove(p.stdout)
             if master in ready:
                 try:
                     data = os.read(master, 65536)
