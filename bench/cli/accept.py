@@ -30,6 +30,7 @@ from __future__ import annotations
 import argparse
 import datetime as _dt
 import json
+import os
 import shlex
 import sys
 import time
@@ -40,14 +41,17 @@ from typing import TYPE_CHECKING, Any
 
 from bench.acceptance.interrupted import Interruption, signal_name
 from bench.cli.app import EXIT_ERROR, EXIT_FAIL, EXIT_OK, EXIT_USAGE
-from bench.cli.progress import progress_bar
+from bench.cli.progress import end_line, progress_bar
 from bench.textsafe import for_terminal
 
 if TYPE_CHECKING:
     from bench.acceptance.judge import CaseResult
     from bench.report.outputs import Ledger
 
-__all__ = ["register", "exit_code", "recording_targets", "clear_recordings", "reproduction", "write_suite_reports"]
+__all__ = [
+    "register", "exit_code", "recording_targets", "clear_recordings", "reproduction", "rerun_folder", "in_folder",
+    "write_suite_reports",
+]
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -157,11 +161,32 @@ def exit_code(cases) -> int:
     return EXIT_OK
 
 
-def reproduction(args: argparse.Namespace) -> str:
-    """The ``bench accept`` command line that reruns this suite (paths and output folder
-    as given; the options that change what runs, not how it is shown)."""
+def rerun_folder(out: Path, started_utc: str) -> Path:
+    """A fresh output folder for rerunning a suite whose output went to ``out``: beside it,
+    named after it and the start time (``reports`` -> ``reports-rerun-20261206T110416Z``), so
+    the rerun neither meets the first run's recordings (not overwritten without ``--force``)
+    nor overwrites them."""
+    if out.name in ("", ".", ".."):
+        out = Path(os.path.abspath(out))
+    stamp = "".join(ch for ch in started_utc.split("+")[0] if ch.isalnum())
+    return out.with_name(f"{out.name}-rerun-{stamp}Z")
+
+
+def in_folder(cwd: str, parts: Sequence[str]) -> str:
+    """``cd CWD && COMMAND``: the command line as run, from where it was run (relative
+    paths stay as the user gave them)."""
+    return f"cd {shlex.quote(cwd)} && {shlex.join(parts)}"
+
+
+def reproduction(args: argparse.Namespace, out: Path | None = None, started_utc: str = "") -> str:
+    """The ``bench accept`` command line that reruns this suite: from the folder it was run
+    in, the paths as given, a fresh output folder (:func:`rerun_folder`; the output folder
+    as given when ``out`` is None), and the options that change what runs, not how it is
+    shown."""
     parts = ["bench", "accept", *(args.paths or [])]
-    if args.out:
+    if out is not None:
+        parts += ["-o", str(rerun_folder(out, started_utc))]
+    elif args.out:
         parts += ["-o", str(args.out)]
     for s in args.seed or []:
         parts += ["--seed", str(s)]
@@ -169,7 +194,7 @@ def reproduction(args: argparse.Namespace) -> str:
         parts += ["--runs", str(args.runs)]
     if args.clock:
         parts += ["--clock", args.clock]
-    return shlex.join(parts)
+    return in_folder(os.getcwd(), parts)
 
 
 def _report(record: Path, out: Path, ledger: Ledger, *, figures: bool, quiet: bool) -> dict[str, Path]:
@@ -183,7 +208,7 @@ def _report(record: Path, out: Path, ledger: Ledger, *, figures: bool, quiet: bo
     done: list[Path] = []
     try:
         results = json.loads(record.read_text(encoding="utf-8"))
-        command, rescore = commands_for(results)
+        command, rescore = commands_for(results, out=out)
         with progress_bar("report: figures", 1, unit="recordings", enabled=figures and not quiet) as bar:
             files = build_report(results, out, locate=folder_locator(out), figures=figures, command=command,
                                  rescore_command=rescore, progress=bar, written=done.append)
@@ -227,8 +252,8 @@ def write_suite_reports(
     Each file is written whole or not at all; when one was not written, or the suite was
     interrupted, one line lists exactly the files written and those not written
     (``bench accept: reports in OUT: written: ...; not written: ...``)."""
+    from bench.cli.summary import terminal_summary
     from bench.report.outputs import Ledger, crash_note, write_reports
-    from bench.report.table import text_table
 
     ledger = Ledger(out)
     written: dict[str, Path] = {}
@@ -245,7 +270,7 @@ def write_suite_reports(
     except KeyboardInterrupt as exc:  # a third signal, or one held while the records were written
         cut = exc
     try:
-        print(text_table(results, interrupted=interruption))
+        print(terminal_summary(results, interrupted=interruption, written=written))
     except Exception as exc:  # the reports are written: say so rather than lose the exit code
         failures.append(crash_note("the summary table", exc, out))
     for note in ledger.notes:
@@ -284,10 +309,11 @@ def _run(args: argparse.Namespace) -> int:
     try:
         results = run_suite(files, options, _Reporter(len(files), args.quiet))
     except SuiteInterrupted as exc:  # the reports of what finished are still written, marked incomplete
+        end_line()  # a bar the interrupt cut ends where it stood: what follows starts on its own line
         results, interruption = exc.results, exc.interruption
     elapsed = time.perf_counter() - started
     run_info = {"started_utc": when, "elapsed_s": round(elapsed, 3), "paths": [str(p) for p in files],
-                "command": reproduction(args)}
+                "command": reproduction(args, out, when)}
     written, failures, cut = write_suite_reports("bench accept", results, out, run_info, interruption=interruption,
                                                  plots=not args.no_plots, report=not args.no_report,
                                                  quiet=args.quiet)

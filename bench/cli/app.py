@@ -89,10 +89,19 @@ def run(argv: list[str] | None = None) -> int:
         _say(f"bench: error: {for_terminal(exc, keep=chr(10))}")
         return EXIT_ERROR
     except KeyboardInterrupt as exc:
+        _end_progress_line()
         _say("bench: interrupted" + (f" by {exc.args[0]}" if exc.args else ""))
         return EXIT_ERROR
     except Exception as exc:  # a bug or the environment: ERROR, one line, the traceback in a log
         return _unexpected(exc, args)
+
+
+def _end_progress_line() -> None:
+    """End the line of a progress bar still drawn, so a message starts on its own line."""
+    with contextlib.suppress(Exception):
+        from bench.cli.progress import end_line
+
+        end_line()
 
 
 def _say(line: str) -> None:
@@ -168,6 +177,7 @@ class _Interrupt:
         self.count += 1
         name = signal.Signals(signum).name
         if self.count == 2:
+            _end_progress_line()
             print(f"bench: {name}: still finishing the recording and stopping the DUT, or writing the reports; "
                   "signal once more to abort that", file=sys.stderr)
             return

@@ -139,7 +139,7 @@ def _run(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     if not records or args.rescore:
         write_json(results, out / "results.json")
-    command, rescore = commands_for(results)
+    command, rescore = commands_for(results, out=base if records else None)
     argv = "bench report " + " ".join(shlex.quote(a) for a in args.inputs)
     def stage(text: str) -> None:
         if not args.quiet:

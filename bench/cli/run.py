@@ -18,10 +18,12 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import datetime as _dt
-import shlex
+import os
 import sys
 import time
 from pathlib import Path
+
+from bench.textsafe import for_terminal
 
 __all__ = ["register"]
 
@@ -44,17 +46,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(handler=_run)
 
 
-def _reproduction(args: argparse.Namespace) -> str:
-    """The ``bench run`` command line that reruns this case."""
-    parts = ["bench", "run", str(args.case)]
-    if args.out:
-        parts += ["-o", str(args.out)]
+def _reproduction(args: argparse.Namespace, out: Path, started_utc: str) -> str:
+    """The ``bench run`` command line that reruns this case, from the folder it was run in,
+    into a fresh output folder (:func:`bench.cli.accept.rerun_folder`)."""
+    from bench.cli.accept import in_folder, rerun_folder
+
+    parts = ["bench", "run", str(args.case), "-o", str(rerun_folder(out, started_utc))]
     for s in args.seed or []:
         parts += ["--seed", str(s)]
     for flag, value in (("--variant", args.variant), ("--clock", args.clock), ("--speed", args.speed)):
         if value is not None:
             parts += [flag, f"{value:g}" if isinstance(value, float) else str(value)]
-    return shlex.join(parts)
+    return in_folder(os.getcwd(), parts)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -63,6 +66,7 @@ def _run(args: argparse.Namespace) -> int:
     from bench.acceptance.suite import CaseInterrupted, SuiteOptions, refuse_impossible_faults, run_case
     from bench.cli.accept import _Reporter, clear_recordings, exit_code, write_suite_reports
     from bench.cli.app import EXIT_ERROR, EXIT_FAIL, EXIT_OK
+    from bench.cli.progress import end_line
     from bench.errors import ConfigError
     from bench.paths import reports_dir
     from bench.record.lock import preflight_folder
@@ -89,16 +93,21 @@ def _run(args: argparse.Namespace) -> int:
     try:
         result = run_case(case, options, _Reporter(1, args.quiet))
     except CaseInterrupted as exc:  # the reports of the runs that finished are still written
+        end_line()  # a bar the interrupt cut ends where it stood: what follows starts on its own line
         result = exc.result
         interruption = Interruption(exc.by, (result.case_id,) if exc.finished else (),
                                     () if exc.finished else (result.case_id,))
     elapsed = time.perf_counter() - started
     run_info = {"started_utc": when, "elapsed_s": round(elapsed, 3), "paths": [str(args.case)],
-                "command": _reproduction(args)}
+                "command": _reproduction(args, out, when)}
     written, failures, cut = write_suite_reports("bench run", [result], out, run_info, interruption=interruption,
                                                  plots=not args.no_plots, report=False, quiet=args.quiet)
-    for run in result.runs:
-        print(f"  recording: {run.recording}", file=sys.stderr)
+    for run in result.runs:  # only recordings that exist: a DUT that failed to load wrote none
+        if Path(run.recording).is_file():
+            print(for_terminal(f"  recording: {run.recording}"), file=sys.stderr)
+        else:
+            which = f"seed {run.seed}" + (f" of variant {run.variant}" if run.variant else "")
+            print(for_terminal(f"  {which}: no recording was written (the summary says why)"), file=sys.stderr)
     print(f"\n{case.id} in {elapsed:.1f} s; results: {written.get('json') or 'none written'}")
     if interruption is not None or cut:
         return EXIT_ERROR

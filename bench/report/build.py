@@ -14,6 +14,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import datetime as _dt
 import os
+import shlex
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -242,9 +243,11 @@ class _Serial:
         return fut
 
 
-def commands_for(results: Mapping[str, Any], paths: Sequence[str] = ()) -> tuple[str, str]:
+def commands_for(results: Mapping[str, Any], paths: Sequence[str] = (), out: str | Path | None = None
+                 ) -> tuple[str, str]:
     """The reproduction command (the record's, or one built from its case files) and the
-    re-judging command (``bench score`` of every recording it names)."""
+    re-judging command: ``bench report results.json --rescore -o rescored`` run in ``out``,
+    the folder holding the record and its recordings (without ``out``, as run from there)."""
     ident = results.get("identification") or {}
     info = results.get("run_info") or {}
     cmd = ident.get("command") or info.get("command") or ""
@@ -255,5 +258,9 @@ def commands_for(results: Mapping[str, Any], paths: Sequence[str] = ()) -> tuple
         cmd = "bench accept " + " ".join(files) + "".join(f" --seed {s}" for s in seeds)
     recs = [f"recordings/{c['id']}/{r['recording']}" for c in results.get("cases", []) for r in c.get("runs", [])
             if r.get("recording")]
-    rescore = "bench report " + ("results.json --rescore" if recs else "RECORDINGS...")
+    if not recs:
+        return cmd, "bench report RECORDINGS... -o DIR"
+    rescore = "bench report results.json --rescore -o rescored"
+    if out is not None:
+        rescore = f"cd {shlex.quote(os.path.abspath(out))} && {rescore}"
     return cmd, rescore

@@ -6,6 +6,8 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+import os
+import shlex
 from pathlib import Path
 
 import pytest
@@ -116,7 +118,9 @@ def test_identification_names_the_recordings_seeds_and_command(suite):
     hashes = sorted(hashlib.sha256(p.read_bytes()).hexdigest() for p in recs)
     assert ident["report_id"] == hashlib.sha256("\n".join(hashes).encode()).hexdigest()[:12]
     assert ident["seeds"] == [1, 2] and ident["cases"] == ["ID1"]
-    assert ident["command"] == f"bench accept {suite['dir'] / 'case.toml'} -o {suite['out']}"
+    stamp = "".join(ch for ch in doc["run_info"]["started_utc"].split("+")[0] if ch.isalnum())
+    assert ident["command"] == (f"cd {shlex.quote(os.getcwd())} && bench accept {suite['dir'] / 'case.toml'} "
+                                f"-o {suite['out']}-rerun-{stamp}Z")  # from where it ran, into a fresh folder
     assert ident["duts"] == [{"kind": "synthetic", "name": None, "command": None, "version": None}]
     assert [i["role"] for i in ident["inputs"]] == ["case", "scenario"]
     assert ident["recorded_by"] and ident["recorded_by"][0]["bench_version"] == ident["judged_by"]["bench_version"]
