@@ -251,6 +251,12 @@ def _run_held(options: CampaignOptions, out: Path, held: CampaignLock,
             if run.key not in records and (rec := load_record(out, run.key)) is not None:
                 records[run.key] = rec
         missing = [r.key for r in plan if r.key not in records]
+        # a run recorded as its worker's death may have been retried by the scheduler once
+        # more after the record (Dask retries a task its worker died under), and that
+        # attempt died too, leaving its marker: the executors are shut down here, so the
+        # marker of a recorded run names nobody
+        for key in records:
+            marker_path(out, key).unlink(missing_ok=True)
         try:
             verdicts, failed = judge_groups(plan, records), None
         except Exception as exc:  # a bench bug: still write what the runs gave, then raise it

@@ -77,10 +77,16 @@ def _listed(cases: Sequence[CaseResult]) -> tuple[list[tuple[str, ...]], list[st
             rows.append((cr.case_id, "", f"all {len(bad)} criteria", reqs, "", "", "", "", verdict))
         else:
             rows += [row for _, row in bad]
+        # the run's problem the case's line shows (a DUT that never started: its last
+        # output) is not repeated per criterion (bench.report.table.reason_lines)
+        shown = [*cr.errors, *(i for r in cr.runs for i in r.bench_issues + r.dut_issues)][:1]
         groups: dict[tuple[str, str], list[str]] = {}
         for res, _ in bad:
             if res.aggregate.reason and res.verdict in (Verdict.FAIL, Verdict.ERROR, Verdict.NA):
-                groups.setdefault((str(res.verdict), res.aggregate.reason), []).append(res.label)
+                reason = res.aggregate.reason
+                for problem in shown:
+                    reason = reason.replace(problem, "the run's problem above") if problem else reason
+                groups.setdefault((str(res.verdict), reason), []).append(res.label)
         for (verdict, reason), labels in groups.items():
             which = labels[0] if len(labels) == 1 else f"{_names(labels)} ({len(labels)} criteria)"
             reasons.append(f"  {cr.case_id} {which}: {verdict}: {reason}")

@@ -156,6 +156,7 @@ INTERRUPTING = """
 import os
 import signal
 import sys
+import time
 
 import bench.acceptance.runner as runner
 from bench.acceptance.synthetic import SyntheticRunner
@@ -167,6 +168,10 @@ class Interrupting:
         progress(3.0, 10.0)
         progress(5.0, 10.0)
         os.kill(os.getpid(), signal.SIGINT)  # the user's Ctrl-C, halfway through the run
+        # the handler runs between two bytecodes of the main thread: wait for it here (a
+        # sleep is cut by it) so that a loaded machine cannot carry the run on past it
+        for _ in range(3000):  # a hang guard, not a timing bound
+            time.sleep(0.01)
         progress(6.0, 10.0)
         return SyntheticRunner().run(case, seed, out_dir, progress=progress)
 

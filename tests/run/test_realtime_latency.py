@@ -50,6 +50,9 @@ script = "{SHORT}"
 kind = "external"
 command = "delayed"
 
+[dut.links]
+can = {{ interface = "udp_multicast", channel = "{GROUP}" }}
+
 [clock]
 mode = "realtime"
 
