@@ -27,7 +27,7 @@ from bench.acceptance.integrity_criteria import PREFIX as INTEGRITY_PREFIX
 from bench.acceptance.interrupted import Interruption
 from bench.acceptance.judge import CaseResult, CriterionResult
 from bench.acceptance.verdict import Verdict
-from bench.report.table import HEADER, case_lines, note_lines, summary_rows
+from bench.report.table import case_lines, fixed_width, note_lines, reason_groups, summary_rows
 from bench.textsafe import for_terminal
 
 __all__ = ["terminal_summary", "ORDER"]
@@ -77,31 +77,11 @@ def _listed(cases: Sequence[CaseResult]) -> tuple[list[tuple[str, ...]], list[st
             rows.append((cr.case_id, "", f"all {len(bad)} criteria", reqs, "", "", "", "", verdict))
         else:
             rows += [row for _, row in bad]
-        # the run's problem the case's line shows (a DUT that never started: its last
-        # output) is not repeated per criterion (bench.report.table.reason_lines)
-        shown = [*cr.errors, *(i for r in cr.runs for i in r.bench_issues + r.dut_issues)][:1]
-        groups: dict[tuple[str, str], list[str]] = {}
-        for res, _ in bad:
-            if res.aggregate.reason and res.verdict in (Verdict.FAIL, Verdict.ERROR, Verdict.NA):
-                reason = res.aggregate.reason
-                for problem in shown:
-                    reason = reason.replace(problem, "the run's problem above") if problem else reason
-                groups.setdefault((str(res.verdict), reason), []).append(res.label)
+        groups = reason_groups(cr, [res for res, _ in bad])
         for (verdict, reason), labels in groups.items():
             which = labels[0] if len(labels) == 1 else f"{_names(labels)} ({len(labels)} criteria)"
             reasons.append(f"  {cr.case_id} {which}: {verdict}: {reason}")
     return rows, reasons, counts, passed, integrity
-
-
-def _table(rows: Sequence[tuple[str, ...]]) -> list[str]:
-    shown = [tuple(_clip(for_terminal(c)) for c in r) for r in [HEADER, *rows]]
-    widths = [max(len(r[i]) for r in shown) for i in range(len(HEADER))]
-    lines = []
-    for k, r in enumerate(shown):
-        lines.append("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip())
-        if k == 0:
-            lines.append("  ".join("-" * w for w in widths))
-    return lines
 
 
 def _count(counts: Counter) -> str:
@@ -124,7 +104,8 @@ def terminal_summary(
     out += [for_terminal(line) for line in case_lines(cases)]
     if rows:
         out += ["", _count(counts)]
-        out += ["", f"Criteria not PASS ({sum(counts[v] for v in ORDER if v is not Verdict.PASS)}):", *_table(rows)]
+        not_pass = sum(counts[v] for v in ORDER if v is not Verdict.PASS)
+        out += ["", f"Criteria not PASS ({not_pass}):", *fixed_width(rows)]
         out += [for_terminal(line) for line in reasons]
     notes = [for_terminal(line) for line in note_lines(cases)]
     if notes:

@@ -20,7 +20,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from bench.acceptance.interrupted import Interruption
-from bench.acceptance.judge import CaseResult
+from bench.acceptance.judge import CaseResult, CriterionResult
 from bench.report.results import criterion_json
 from bench.textsafe import for_markdown, for_terminal
 
@@ -73,20 +73,42 @@ def _clip(s: str, n: int) -> str:
     return s if len(s) <= n else s[: n - 1] + "…"
 
 
-def text_table(cases: Sequence[CaseResult], width: int = 40, interrupted: Interruption | None = None) -> str:
-    """A fixed-width table (long cells clipped to ``width``); a suite ``interrupted`` says so
-    on the first line."""
-    rows = [HEADER, *summary_rows(cases)]
-    rows = [tuple(_clip(for_terminal(c), width) for c in r) for r in rows]
-    widths = [max(len(r[i]) for r in rows) for i in range(len(HEADER))]
+def fixed_width(rows: Sequence[tuple[str, ...]], width: int = 40) -> list[str]:
+    """``rows`` under :data:`HEADER` as fixed-width lines (cells made safe for a terminal
+    and clipped to ``width``), a rule under the header."""
+    shown = [tuple(_clip(for_terminal(c), width) for c in r) for r in [HEADER, *rows]]
+    widths = [max(len(r[i]) for r in shown) for i in range(len(HEADER))]
     lines = []
-    for k, r in enumerate(rows):
+    for k, r in enumerate(shown):
         lines.append("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip())
         if k == 0:
             lines.append("  ".join("-" * w for w in widths))
+    return lines
+
+
+def text_table(cases: Sequence[CaseResult], width: int = 40, interrupted: Interruption | None = None) -> str:
+    """A fixed-width table (long cells clipped to ``width``); a suite ``interrupted`` says so
+    on the first line."""
+    lines = fixed_width(summary_rows(cases), width)
     notes = [for_terminal(line) for line in (*case_lines(cases), *reason_lines(cases), *note_lines(cases))]
     head = [for_terminal(interrupted.headline()), ""] if interrupted is not None else []
     return "\n".join([*head, *lines, "", *notes])
+
+
+def reason_groups(cr: CaseResult, results: Sequence[CriterionResult]) -> dict[tuple[str, str], list[str]]:
+    """(verdict, reason) -> labels of the ``results`` of case ``cr`` that are FAIL, ERROR
+    or N/A with a reason: criteria with the same verdict and reason share a line, and the
+    run's problem that the case's line shows (a DUT that never started: its last output) is
+    not repeated per criterion."""
+    shown = [*cr.errors, *(i for r in cr.runs for i in r.bench_issues + r.dut_issues)][:1]
+    groups: dict[tuple[str, str], list[str]] = {}
+    for res in results:
+        if res.aggregate.reason and res.verdict.value in ("FAIL", "ERROR", "N/A"):
+            reason = res.aggregate.reason
+            for problem in shown:
+                reason = reason.replace(problem, "the run's problem above") if problem else reason
+            groups.setdefault((str(res.verdict), reason), []).append(res.label)
+    return groups
 
 
 def reason_lines(cases: Sequence[CaseResult]) -> list[str]:
@@ -94,17 +116,7 @@ def reason_lines(cases: Sequence[CaseResult]) -> list[str]:
     text: escape it for where it is shown)."""
     out = []
     for cr in cases:
-        # criteria with the same verdict and reason share a line, and the run's problem that
-        # the case's line shows (a DUT that never started: its last output) is not repeated
-        shown = [*cr.errors, *(i for r in cr.runs for i in r.bench_issues + r.dut_issues)][:1]
-        groups: dict[tuple[str, str], list[str]] = {}
-        for res in cr.criteria:
-            if res.aggregate.reason and res.verdict.value in ("FAIL", "ERROR", "N/A"):
-                reason = res.aggregate.reason
-                for problem in shown:
-                    reason = reason.replace(problem, "the run's problem above") if problem else reason
-                groups.setdefault((str(res.verdict), reason), []).append(res.label)
-        for (verdict, reason), labels in groups.items():
+        for (verdict, reason), labels in reason_groups(cr, cr.criteria).items():
             many = f" ({len(labels)} criteria)" if len(labels) > 1 else ""
             out.append(f"  {cr.case_id} {', '.join(labels)}{many}: {verdict}: {reason}")
     return out
